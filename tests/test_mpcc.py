@@ -1,0 +1,91 @@
+import casadi as ca
+import numpy as np
+import pytest
+
+from tfcontact.errors import InvalidInput, SolveFailed
+from tfcontact.mpcc import (
+    Homotopy,
+    L1Penalty,
+    LinfPenalty,
+    Mpcc,
+    MpccSolver,
+    MpccStatus,
+    Scholtes,
+    solve,
+)
+
+
+def corner_mpcc(target=(1.0, 0.8), extra_g=None):
+    """min (x - a)^2 + (y - b)^2 s.t. 0 <= x perp y >= 0: the solution is (a, 0) when a > b."""
+    w = ca.SX.sym("w", 2)
+    a, b = target
+    g = ca.SX(0, 1) if extra_g is None else extra_g(w)
+    n_g = g.numel()
+    return Mpcc(
+        w=w, f=(w[0] - a) ** 2 + (w[1] - b) ** 2, g=g,
+        lbg=np.zeros(n_g), ubg=np.zeros(n_g),
+        lbw=np.zeros(2), ubw=np.full(2, np.inf), w0=np.array([0.5, 0.5]),
+        G=w[0], H=w[1], blocks={"x": np.array([0]), "y": np.array([1])},
+    )
+
+
+@pytest.mark.parametrize("relaxation", [Scholtes(), L1Penalty(), LinfPenalty()])
+def test_each_relaxation_reaches_the_mpcc_solution(relaxation):
+    result = solve(corner_mpcc(), relaxation=relaxation, homotopy=Homotopy(tolerance=1e-9))
+    assert result.status is MpccStatus.CONVERGED
+    assert result.residual <= 1e-9
+    np.testing.assert_allclose(result.value("x"), [1.0], atol=1e-6)
+    np.testing.assert_allclose(result.value("y"), [0.0], atol=1e-6)
+    np.testing.assert_allclose(result.objective, 0.8**2, atol=1e-6)
+    assert 1 <= result.n_nlps <= Homotopy().n_max
+    assert len(result.history) == result.n_nlps
+
+
+def test_scholtes_needs_sigma_below_tolerance():
+    # Scholtes keeps the products at sigma while both factors want to be positive,
+    # so it stops only once sigma <= tolerance: ceil(log(1e-6)/log(0.1)) + 1 NLPs.
+    result = solve(corner_mpcc(target=(1.0, 1.0)), homotopy=Homotopy(tolerance=1e-6))
+    assert result.success
+    assert result.n_nlps >= 6
+
+
+def test_parameters_and_repeated_solves_reuse_one_build():
+    w = ca.SX.sym("w", 2)
+    p = ca.SX.sym("p")
+    mpcc = Mpcc(w=w, f=(w[0] - p) ** 2 + (w[1] + p) ** 2, g=ca.SX(0, 1), lbg=[], ubg=[],
+                lbw=np.zeros(2), ubw=np.full(2, np.inf), w0=np.ones(2), G=w[0], H=w[1], p=p)
+    solver = MpccSolver(mpcc, relaxation=LinfPenalty())
+    for target in (2.0, -3.0):
+        result = solver.solve(p=[target])
+        assert result.success
+        # x = max(p, 0), y = max(-p, 0): the projection of (p, -p) on the complementarity set
+        np.testing.assert_allclose(result.w, [max(target, 0), max(-target, 0)], atol=1e-6)
+
+
+def test_infeasible_problem_is_reported_not_marked_successful():
+    mpcc = corner_mpcc(extra_g=lambda w: w[0] + w[1] + 1.0)  # x + y = -1 with x, y >= 0
+    result = solve(mpcc, throw=False, homotopy=Homotopy(max_nlps=2))
+    assert not result.success
+    assert result.status is MpccStatus.NLP_FAILED
+    assert "Infeasible" in result.ipopt_status or "Restoration" in result.ipopt_status
+    with pytest.raises(SolveFailed, match="NLP failed") as info:
+        solve(mpcc, homotopy=Homotopy(max_nlps=2))
+    assert info.value.result is not None
+
+
+def test_bad_input_is_named():
+    with pytest.raises(InvalidInput, match="`kappa` must lie in"):
+        Homotopy(kappa=1.5)
+    with pytest.raises(InvalidInput, match="`sigma_0` must be positive"):
+        Homotopy(sigma_0=0.0)
+    w = ca.SX.sym("w", 2)
+    with pytest.raises(InvalidInput, match="`lbw` has 1 entries, expected 2"):
+        Mpcc(w=w, f=w[0], g=ca.SX(0, 1), lbg=[], ubg=[], lbw=[0], ubw=[1, 1], w0=[0, 0],
+             G=w[0], H=w[1])
+    with pytest.raises(InvalidInput, match="`G` and `H` must have equal length"):
+        Mpcc(w=w, f=w[0], g=ca.SX(0, 1), lbg=[], ubg=[], lbw=[0, 0], ubw=[1, 1], w0=[0, 0],
+             G=w, H=w[1])
+    with pytest.raises(InvalidInput, match="`relaxation` must be a Relaxation"):
+        MpccSolver(corner_mpcc(), relaxation="scholtes")
+    with pytest.raises(InvalidInput, match="pass `p`|`p` has"):
+        MpccSolver(corner_mpcc()).solve(p=[1.0])

@@ -1,0 +1,51 @@
+"""The exceptions of tfcontact: one base class, specific subclasses that carry evidence.
+
+Every message names the problem and, where there is one, the fix.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+class TfcontactError(Exception):
+    """Base class of every error tfcontact raises on purpose."""
+
+
+class InvalidInput(TfcontactError, ValueError):
+    """An argument has the wrong value, shape or type."""
+
+
+class IncompatibleOptions(TfcontactError, ValueError):
+    """Two options were given that cannot be used together."""
+
+
+class RobotLoadError(TfcontactError):
+    """A robot description could not be found or parsed."""
+
+
+class FrameNotFound(TfcontactError, KeyError):
+    """A frame name is not in the robot model."""
+
+    def __init__(self, name: str, frames: list[str] | tuple[str, ...]):
+        self.name = name
+        self.frames = tuple(frames)
+        shown = ", ".join(self.frames[:40]) + (" ..." if len(self.frames) > 40 else "")
+        super().__init__(
+            f"frame `{name}` is not in the model; pick one of: {shown}"
+        )
+
+    def __str__(self) -> str:  # KeyError would quote the message otherwise
+        return self.args[0]
+
+
+class SolveFailed(TfcontactError):
+    """A solve did not converge; `result` holds the last iterate and the diagnostics."""
+
+    def __init__(self, message: str, result: Any = None):
+        super().__init__(message)
+        self.result = result
+
+
+class TrajectoryFileError(TfcontactError):
+    """A trajectory file is damaged, foreign or of an unsupported version."""

@@ -1,0 +1,28 @@
+"""MPCCs: relaxations and the homotopy that solves them with IPOPT."""
+
+from tfcontact.mpcc.problem import Mpcc
+from tfcontact.mpcc.relaxation import L1Penalty, LinfPenalty, Relaxation, Scholtes
+from tfcontact.mpcc.solver import (
+    Homotopy,
+    HomotopyStep,
+    Ipopt,
+    MpccResult,
+    MpccSolver,
+    MpccStatus,
+    solve,
+)
+
+__all__ = [
+    "Homotopy",
+    "HomotopyStep",
+    "Ipopt",
+    "L1Penalty",
+    "LinfPenalty",
+    "Mpcc",
+    "MpccResult",
+    "MpccSolver",
+    "MpccStatus",
+    "Relaxation",
+    "Scholtes",
+    "solve",
+]

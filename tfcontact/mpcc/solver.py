@@ -1,0 +1,344 @@
+"""Homotopy solution of an MPCC: a sequence of relaxed NLPs solved with IPOPT.
+
+sigma_0 > sigma_1 = kappa sigma_0 > ...; each NLP is warm started from the last
+one's solution, and the loop stops when the complementarity residual
+max_i |G_i H_i| is at most `tolerance` (DESIGN.md 4.7). The NLP is built once
+with sigma (and the MPCC's parameters p) as NLP parameters, so repeated solves
+(a simulator stepping through time) pay the build once.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from tfcontact.errors import InvalidInput, SolveFailed
+from tfcontact.mpcc.problem import Mpcc
+from tfcontact.mpcc.relaxation import Relaxation, Scholtes
+
+# IPOPT return statuses that mean the NLP was solved.
+_IPOPT_SOLVED = {"Solve_Succeeded", "Solved_To_Acceptable_Level"}
+
+
+@dataclass(frozen=True)
+class Homotopy:
+    """The homotopy schedule sigma_{k+1} = kappa sigma_k.
+
+    Args:
+        sigma_0: first relaxation parameter.
+        kappa: reduction factor in (0, 1).
+        tolerance: stop when max_i |G_i H_i| <= tolerance.
+        max_nlps: at most this many NLPs; by default enough for sigma to reach
+            `tolerance`, plus one.
+    """
+
+    sigma_0: float = 1.0
+    kappa: float = 0.1
+    tolerance: float = 1e-9
+    max_nlps: int | None = None
+
+    def __post_init__(self) -> None:
+        if not self.sigma_0 > 0:
+            raise InvalidInput(f"`sigma_0` must be positive, got {self.sigma_0}")
+        if not 0 < self.kappa < 1:
+            raise InvalidInput(f"`kappa` must lie in (0, 1), got {self.kappa}")
+        if not self.tolerance > 0:
+            raise InvalidInput(f"`tolerance` must be positive, got {self.tolerance}")
+        if self.max_nlps is not None and self.max_nlps < 1:
+            raise InvalidInput(f"`max_nlps` must be at least 1, got {self.max_nlps}")
+
+    @property
+    def n_max(self) -> int:
+        if self.max_nlps is not None:
+            return self.max_nlps
+        if self.sigma_0 <= self.tolerance:
+            return 1
+        return math.ceil(math.log(self.tolerance / self.sigma_0) / math.log(self.kappa)) + 1
+
+
+@dataclass(frozen=True)
+class Ipopt:
+    """IPOPT settings (MUMPS linear solver).
+
+    Args:
+        tol: IPOPT's convergence tolerance.
+        max_iter: iterations per NLP.
+        print_level: IPOPT's own output, 0 (silent) to 12.
+        options: further IPOPT options by name (without the "ipopt." prefix).
+    """
+
+    tol: float = 1e-10
+    max_iter: int = 500
+    print_level: int = 0
+    options: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not self.tol > 0:
+            raise InvalidInput(f"`tol` must be positive, got {self.tol}")
+        if self.max_iter < 1:
+            raise InvalidInput(f"`max_iter` must be at least 1, got {self.max_iter}")
+        for key in ("tol", "max_iter", "print_level"):
+            if key in self.options:
+                raise InvalidInput(f"give `{key}` as a field of Ipopt, not in `options`")
+
+    def casadi_options(self) -> dict[str, Any]:
+        ipopt = {
+            "tol": self.tol,
+            "max_iter": self.max_iter,
+            "print_level": self.print_level,
+            "sb": "yes",
+            "mu_strategy": "adaptive",
+            "mu_oracle": "quality-function",
+            "bound_relax_factor": 0.0,
+            "acceptable_tol": 1e-6,
+        }
+        ipopt.update(self.options)
+        return {"ipopt": ipopt, "print_time": False, "error_on_fail": False}
+
+
+class MpccStatus(enum.Enum):
+    """How a homotopy ended."""
+
+    CONVERGED = "converged: the complementarity residual reached the tolerance"
+    NOT_CONVERGED = (
+        "not converged: the NLPs solved but the complementarity residual stayed above the "
+        "tolerance; allow more NLPs (Homotopy.max_nlps), a smaller kappa or another relaxation"
+    )
+    NLP_FAILED = (
+        "NLP failed: IPOPT did not solve the last NLP (see `ipopt_status`); the problem may be "
+        "infeasible, or needs a better initial guess, more iterations or a larger sigma_0"
+    )
+
+
+@dataclass(frozen=True)
+class HomotopyStep:
+    """One NLP of the homotopy."""
+
+    sigma: float
+    iterations: int
+    objective: float
+    residual: float
+    seconds: float
+    ipopt_status: str
+
+
+@dataclass(frozen=True, eq=False)
+class MpccResult:
+    """The outcome of a homotopy: last iterate, status and work counters."""
+
+    status: MpccStatus
+    w: np.ndarray
+    objective: float
+    residual: float
+    constraint_violation: float
+    history: tuple[HomotopyStep, ...]
+    build_time: float
+    blocks: dict[str, np.ndarray]
+    relaxation: str
+    lam_g: np.ndarray | None = None
+
+    @property
+    def success(self) -> bool:
+        return self.status is MpccStatus.CONVERGED
+
+    @property
+    def message(self) -> str:
+        last = self.history[-1].ipopt_status if self.history else "no NLP solved"
+        return (
+            f"{self.status.value} (residual {self.residual:.2e}, {self.n_nlps} NLPs, "
+            f"{self.total_iterations} IPOPT iterations, last IPOPT status {last})"
+        )
+
+    @property
+    def ipopt_status(self) -> str:
+        return self.history[-1].ipopt_status if self.history else ""
+
+    @property
+    def n_nlps(self) -> int:
+        return len(self.history)
+
+    @property
+    def iterations(self) -> list[int]:
+        return [s.iterations for s in self.history]
+
+    @property
+    def total_iterations(self) -> int:
+        return sum(self.iterations)
+
+    @property
+    def nlp_times(self) -> list[float]:
+        return [s.seconds for s in self.history]
+
+    @property
+    def solve_time(self) -> float:
+        return sum(self.nlp_times)
+
+    def value(self, block: str) -> np.ndarray:
+        """The solution's entries of a named block of variables."""
+        if block not in self.blocks:
+            raise InvalidInput(f"no block `{block}`; blocks are {sorted(self.blocks)}")
+        return self.w[self.blocks[block]]
+
+
+class MpccSolver:
+    """An MPCC with its relaxed NLP built once; solve it for many parameter values.
+
+    Args:
+        mpcc: the problem.
+        relaxation: how the complementarity products enter the NLP.
+        nlp: IPOPT settings.
+    """
+
+    def __init__(self, mpcc: Mpcc, *, relaxation: Relaxation | None = None,
+                 nlp: Ipopt | None = None):
+        self.mpcc = mpcc
+        self.relaxation = relaxation if relaxation is not None else Scholtes()
+        self.nlp = nlp if nlp is not None else Ipopt()
+        if not isinstance(self.relaxation, Relaxation):
+            raise InvalidInput(
+                f"`relaxation` must be a Relaxation (Scholtes, L1Penalty, LinfPenalty), "
+                f"got {type(self.relaxation).__name__}"
+            )
+        start = time.perf_counter()
+        sigma = ca.SX.sym("sigma")
+        products = mpcc.G * mpcc.H
+        extra = self.relaxation.terms(products, sigma)
+        x = ca.vertcat(mpcc.w, extra.w)
+        self._n_w = mpcc.n_w
+        self._lbx = np.concatenate([mpcc.lbw, extra.lbw])
+        self._ubx = np.concatenate([mpcc.ubw, extra.ubw])
+        self._x0_extra = extra.w0
+        self._lbg = np.concatenate([mpcc.lbg, extra.lbg])
+        self._ubg = np.concatenate([mpcc.ubg, extra.ubg])
+        nlp_dict = {
+            "x": x,
+            "p": ca.vertcat(mpcc.p, sigma),
+            "f": mpcc.f + extra.objective,
+            "g": ca.vertcat(mpcc.g, extra.g),
+        }
+        self._solver = ca.nlpsol("mpcc", "ipopt", nlp_dict, self.nlp.casadi_options())
+        self._diagnostics = ca.Function(
+            "mpcc_diagnostics", [mpcc.w, mpcc.p], [products, mpcc.g, mpcc.f]
+        )
+        self.build_time = time.perf_counter() - start
+
+    def _p_value(self, p: np.ndarray | None) -> np.ndarray:
+        n_p = self.mpcc.p.numel()
+        if p is None:
+            if n_p:
+                raise InvalidInput(f"this MPCC has {n_p} parameters: pass `p`")
+            return np.zeros(0)
+        p = np.asarray(p, dtype=float).reshape(-1)
+        if p.size != n_p:
+            raise InvalidInput(f"`p` has {p.size} entries, expected {n_p}")
+        return p
+
+    def diagnostics(self, w: np.ndarray, p: np.ndarray | None = None) -> tuple[float, float, float]:
+        """(complementarity residual, constraint violation, objective) at w."""
+        products, g, f = self._diagnostics(w, self._p_value(p))
+        products = np.abs(np.asarray(products).reshape(-1))
+        g = np.asarray(g).reshape(-1)
+        residual = float(products.max()) if products.size else 0.0
+        violation = 0.0
+        if g.size:
+            violation = float(max(np.max(self.mpcc.lbg - g), np.max(g - self.mpcc.ubg), 0.0))
+        bounds = max(float(np.max(self.mpcc.lbw - w, initial=0.0)),
+                     float(np.max(w - self.mpcc.ubw, initial=0.0)))
+        return residual, max(violation, bounds), float(f)
+
+    def solve(self, p: np.ndarray | None = None, w0: np.ndarray | None = None, *,
+              homotopy: Homotopy | None = None, verbose: bool = False,
+              feasibility_tol: float = 1e-6) -> MpccResult:
+        """Run the homotopy.
+
+        Args:
+            p: values of the MPCC's parameters.
+            w0: initial guess (default: the MPCC's w0).
+            homotopy: the sigma schedule and stopping tolerance.
+            verbose: print one line per NLP (sigma, iterations, objective, residual, seconds).
+            feasibility_tol: a converged result must satisfy the MPCC's constraints to this
+                tolerance; otherwise the status is NLP_FAILED.
+        """
+        homotopy = homotopy if homotopy is not None else Homotopy()
+        p = self._p_value(p)
+        w = self.mpcc.w0 if w0 is None else np.asarray(w0, dtype=float).reshape(-1)
+        if w.size != self._n_w:
+            raise InvalidInput(f"`w0` has {w.size} entries, expected {self._n_w}")
+        x = np.concatenate([np.clip(w, self.mpcc.lbw, self.mpcc.ubw), self._x0_extra])
+        history: list[HomotopyStep] = []
+        sigma = homotopy.sigma_0
+        status = MpccStatus.NOT_CONVERGED
+        residual = violation = objective = math.inf
+        lam_g = None
+        if verbose:
+            print(f"  {'NLP':>3} {'sigma':>9} {'iter':>5} {'objective':>12} "
+                  f"{'residual':>9} {'time[s]':>8}  IPOPT", file=sys.stdout, flush=True)
+        for k in range(homotopy.n_max):
+            start = time.perf_counter()
+            sol = self._solver(x0=x, p=np.concatenate([p, [sigma]]), lbx=self._lbx,
+                               ubx=self._ubx, lbg=self._lbg, ubg=self._ubg)
+            seconds = time.perf_counter() - start
+            stats = self._solver.stats()
+            ipopt_status = str(stats.get("return_status", "unknown"))
+            iterations = int(stats.get("iter_count", 0))
+            x_new = np.asarray(sol["x"]).reshape(-1)
+            if np.all(np.isfinite(x_new)):
+                x = x_new
+                lam_g = np.asarray(sol["lam_g"]).reshape(-1)
+            residual, violation, objective = self.diagnostics(x[: self._n_w], p)
+            history.append(HomotopyStep(sigma, iterations, objective, residual, seconds,
+                                        ipopt_status))
+            if verbose:
+                print(f"  {k + 1:>3} {sigma:9.2e} {iterations:5d} {objective:12.5e} "
+                      f"{residual:9.2e} {seconds:8.3f}  {ipopt_status}", flush=True)
+            solved = ipopt_status in _IPOPT_SOLVED
+            if not solved:
+                status = MpccStatus.NLP_FAILED
+                # A failed relaxed NLP early in the homotopy can recover with a smaller sigma;
+                # give up only when the last allowed NLP fails.
+            else:
+                status = MpccStatus.NOT_CONVERGED
+            if solved and residual <= homotopy.tolerance:
+                status = MpccStatus.CONVERGED
+                break
+            sigma *= homotopy.kappa
+        if status is MpccStatus.CONVERGED and violation > feasibility_tol:
+            status = MpccStatus.NLP_FAILED
+        return MpccResult(
+            status=status, w=x[: self._n_w].copy(), objective=objective, residual=residual,
+            constraint_violation=violation, history=tuple(history),
+            build_time=self.build_time, blocks=dict(self.mpcc.blocks),
+            relaxation=self.relaxation.name, lam_g=lam_g,
+        )
+
+
+def solve(mpcc: Mpcc, p: np.ndarray | None = None, *, relaxation: Relaxation | None = None,
+          homotopy: Homotopy | None = None, nlp: Ipopt | None = None, verbose: bool = False,
+          throw: bool = True) -> MpccResult:
+    """Build the relaxed NLP of `mpcc` and run the homotopy once.
+
+    Main args:
+        mpcc: the problem; p: its parameter values.
+
+    Other args:
+        relaxation: `Scholtes()` (default), `L1Penalty()` or `LinfPenalty()`.
+        homotopy: the sigma schedule and tolerance, `Homotopy()` by default.
+        nlp: IPOPT settings, `Ipopt()` by default.
+        verbose: one progress line per NLP.
+        throw: raise `SolveFailed` (carrying the result) unless converged.
+
+    Raises:
+        SolveFailed: if `throw` and the homotopy did not converge.
+    """
+    solver = MpccSolver(mpcc, relaxation=relaxation, nlp=nlp)
+    result = solver.solve(p, homotopy=homotopy, verbose=verbose)
+    if throw and not result.success:
+        raise SolveFailed(result.message, result)
+    return result
