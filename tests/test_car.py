@@ -151,3 +151,14 @@ def test_milp_options_validation():
         Bisection(lower=20.0, upper=5.0)
     with pytest.raises(InvalidInput, match="`n_intervals` must be a positive integer"):
         build_car_milp(0, 10.0)
+
+
+def test_milp_with_sampled_guards_is_not_an_automaton_trajectory():
+    # Guards only on grid points (nosnoc's script): the plan keeps a mode past a threshold
+    # until the next grid point, beats the true minimum time, and misses the goal when
+    # its controls drive the real automaton.
+    ref = time_optimal_reference()
+    res = car_minimum_time_milp(10, bisection=Bisection(tolerance=1e-4), sampled_guards=True)
+    assert res.final_time < ref.final_time
+    sim = simulate_car(res.best.controls, res.times)
+    assert sim.terminal_error > 1.0

@@ -26,6 +26,16 @@ The invariants make the nominal mode leave at v_2 exactly (it cannot pass it), s
 feasible plan is an exact trajectory of the automaton: its accuracy is limited by the
 solver's feasibility tolerance only, and the price of the grid is paid in T (switches
 must fall on grid points, so the plan slows down to meet v_2 on one).
+
+`sampled_guards=True` gives the variant closer to nosnoc's MILP script (its guards are
+only tested at discretisation points): no invariants inside the intervals, and the mode
+of interval k is the automaton's response to the sampled velocity v_k,
+    b_{k-1} = 0, v_k >= v_2 => b_k = 1:  v_k <= v_2 - eps + (v_max - v_2 + eps)(b_k + b_{k-1})
+    b_{k-1} = 1, v_k <= v_1 => b_k = 0:  v_k >= v_1 + eps - (v_1 - v_min + eps)(2 - b_k - b_{k-1})
+with eps = 1e-6 m/s, plus the guards above. The velocity may then cross a threshold
+inside an interval while the plan keeps the old mode up to the next grid point: the plan
+is a sampled-data model of the automaton and the event-located simulation of its
+controls measures the resulting terminal error.
 """
 
 from __future__ import annotations
@@ -40,6 +50,8 @@ from scipy.optimize import Bounds, LinearConstraint, milp
 
 from tfcontact.errors import InvalidInput
 from tfcontact.scenes.car import NOMINAL, TF13, TURBO, CarProblem
+
+_EPS = 1e-6  # [m/s] strictness margin of the sampled guards (nosnoc's script uses 1e-6)
 
 
 @dataclass(frozen=True)
@@ -194,6 +206,7 @@ def build_car_milp(
     problem: CarProblem = TF13,
     *,
     initial_mode: int = NOMINAL,
+    sampled_guards: bool = False,
 ) -> CarMilp:
     """Assemble the feasibility MILP of the module docstring for N intervals and horizon T.
 
@@ -202,6 +215,8 @@ def build_car_milp(
         final_time: T [s], fixed.
         problem: the car data; start from rest at q = 0, end at (q_goal, v_goal).
         initial_mode: the automaton's mode at t = 0.
+        sampled_guards: drop the invariants inside the intervals and force the switch
+            from the sampled v_k instead (see the module docstring).
     """
     if not (isinstance(n_intervals, int | np.integer) and n_intervals >= 1):
         raise InvalidInput(f"`n_intervals` must be a positive integer, got {n_intervals!r}")
@@ -247,10 +262,18 @@ def build_car_milp(
         row({a: -1.0, b: -U}, -inf, 0.0)
         row({u: 1.0, a: -1.0, b: U}, -inf, U)
         row({u: -1.0, a: 1.0, b: U}, -inf, U)
-        # invariants on the interval (end points of an affine v)
-        for vi in (v0, v1):
-            row({vi: 1.0, b: -m_nominal}, -inf, p.v_turbo_on)
-            row({vi: 1.0, b: -m_turbo}, p.v_turbo_off - m_turbo, inf)
+        if not sampled_guards:
+            # invariants on the interval (end points of an affine v)
+            for vi in (v0, v1):
+                row({vi: 1.0, b: -m_nominal}, -inf, p.v_turbo_on)
+                row({vi: 1.0, b: -m_turbo}, p.v_turbo_off - m_turbo, inf)
+        elif k > 0:
+            # forced switches from the sampled velocity (b_{-1} = initial mode: v_0 is fixed)
+            bp = ib[k - 1]
+            m_f = m_nominal + _EPS
+            row({v0: 1.0, b: -m_f, bp: -m_f}, -inf, p.v_turbo_on - _EPS)
+            m_f = m_turbo + _EPS
+            row({v0: 1.0, b: -m_f, bp: -m_f}, p.v_turbo_off + _EPS - 2 * m_f, inf)
         # guards on grid point k (b_{-1} = initial mode is a constant)
         if k == 0:
             row({v0: 1.0, b: -m_on}, p.v_turbo_on - m_on - m_on * initial_mode, inf)
@@ -300,10 +323,11 @@ def solve_car_milp(
     problem: CarProblem = TF13,
     *,
     options: MilpOptions = MilpOptions(),
+    sampled_guards: bool = False,
 ) -> CarMilpSolution:
     """Build and solve the feasibility MILP for one (N, T) with HiGHS."""
     wall0, cpu0 = time.perf_counter(), time.process_time()
-    model = build_car_milp(n_intervals, final_time, problem)
+    model = build_car_milp(n_intervals, final_time, problem, sampled_guards=sampled_guards)
     res = milp(
         c=model.c,
         constraints=LinearConstraint(model.A, model.lb_A, model.ub_A),
@@ -355,6 +379,7 @@ def car_minimum_time_milp(
     *,
     bisection: Bisection = Bisection(),
     options: MilpOptions = MilpOptions(),
+    sampled_guards: bool = False,
 ) -> CarMilpResult:
     """Minimum final time over the N-interval grid by bisection on T (feasibility MILPs).
 
@@ -368,7 +393,9 @@ def car_minimum_time_milp(
     from tfcontact.errors import SolveFailed
 
     history: list[CarMilpSolution] = []
-    top = solve_car_milp(n_intervals, bisection.upper, problem, options=options)
+    top = solve_car_milp(
+        n_intervals, bisection.upper, problem, options=options, sampled_guards=sampled_guards
+    )
     history.append(top)
     if not top.feasible:
         raise SolveFailed(
@@ -379,7 +406,9 @@ def car_minimum_time_milp(
     lower, upper, best = bisection.lower, bisection.upper, top
     while upper - lower > bisection.tolerance and len(history) < bisection.max_milps:
         mid = 0.5 * (lower + upper)
-        sol = solve_car_milp(n_intervals, mid, problem, options=options)
+        sol = solve_car_milp(
+            n_intervals, mid, problem, options=options, sampled_guards=sampled_guards
+        )
         history.append(sol)
         if sol.status is MilpStatus.FAILED:
             raise SolveFailed(f"HiGHS failed at T = {mid}: {sol.message}", sol)
