@@ -1,0 +1,121 @@
+"""Independent checks of a plan: the numbers a plan must pass before it is called a success.
+
+The checks use only the physical-time samples of the plan and the original
+system's data (M(q), smooth forces, contact Jacobians), never the time-freezing
+modes the plan was computed with, so that an error in those modes shows up here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Verification:
+    """The outcome of the independent checks of one plan.
+
+    Attributes:
+        passed: every check below within its tolerance.
+        method: how the plan was re-simulated.
+        end_state_deviation: ||x_plan(T) - x_resimulated(T)|| (inf norm) [state units].
+        min_gap: the smallest contact gap over the plan [m]; penetration is negative.
+        friction_cone_violation: max over contacts and sample intervals of
+            max(|Lambda_t| - mu Lambda_n, -Lambda_n, 0) for the contact impulses
+            Lambda recovered from the velocity change [N s].
+        clock_monotone: the clock never runs backwards.
+        clock_end_error: |t(T_numerical) - T_physical| [s].
+        tolerances: the tolerance of each check, by name.
+        notes: what was not or could not be checked.
+    """
+
+    passed: bool
+    method: str
+    end_state_deviation: float
+    min_gap: float
+    friction_cone_violation: float
+    clock_monotone: bool
+    clock_end_error: float
+    tolerances: dict[str, float] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict:
+        out = asdict(self)
+        out["notes"] = list(self.notes)
+        return out
+
+    def summary(self) -> str:
+        tol = self.tolerances
+        flag = "PASSED" if self.passed else "FAILED"
+        return (
+            f"verification {flag} ({self.method}): end-state deviation "
+            f"{self.end_state_deviation:.2e} (tol {tol.get('end_state', float('nan')):.0e}), "
+            f"min gap {self.min_gap:+.2e} m (tol -{tol.get('gap', float('nan')):.0e}), "
+            f"friction-cone violation {self.friction_cone_violation:.2e} N s, "
+            f"clock {'monotone' if self.clock_monotone else 'NOT monotone'}, "
+            f"clock end error {self.clock_end_error:.2e} s"
+        )
+
+
+def contact_impulses(
+    t: np.ndarray,
+    q: np.ndarray,
+    v: np.ndarray,
+    u: np.ndarray,
+    mass_matrix: Callable[[np.ndarray], np.ndarray],
+    smooth_force: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
+    contact_jacobian: Callable[[np.ndarray], np.ndarray],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Contact impulses over each sample interval from the momentum balance.
+
+    On [t_k, t_{k+1}]: M (v_{k+1} - v_k) - int f_v dt = J^T Lambda, with M and J taken at
+    the interval's start (q does not jump) and the smooth force integrated by the
+    trapezoidal rule in physical time. An impact has t_{k+1} = t_k and so no smooth part.
+
+    Args:
+        t: physical times, shape (K,); q, v: shape (K, n_v); u: controls, shape (K, n_u).
+        mass_matrix: M(q), (n_v, n_v). smooth_force: f_v(q, v, u), (n_v,).
+        contact_jacobian: the columns [n_1, B_1, n_2, B_2, ...] in R^{n_v}, (n_v, m).
+
+    Returns:
+        impulses: shape (K - 1, m), least-squares Lambda per interval.
+        fit_residual: shape (K - 1,), ||M dv - int f_v - J Lambda|| (what contacts cannot explain).
+    """
+    n = len(t) - 1
+    impulses = []
+    residuals = []
+    for k in range(n):
+        dt = t[k + 1] - t[k]
+        momentum = mass_matrix(q[k]) @ (v[k + 1] - v[k])
+        force = 0.5 * dt * (smooth_force(q[k], v[k], u[k]) + smooth_force(q[k + 1], v[k + 1], u[k]))
+        jac = contact_jacobian(q[k])
+        lam, *_ = np.linalg.lstsq(jac, momentum - force, rcond=None)
+        impulses.append(lam)
+        residuals.append(np.linalg.norm(jac @ lam - (momentum - force)))
+    return np.asarray(impulses), np.asarray(residuals)
+
+
+def friction_cone_violation(
+    impulses: np.ndarray, mu: Sequence[float], n_tangents: Sequence[int]
+) -> float:
+    """max over intervals and contacts of max(||Lambda_t|| - mu Lambda_n, -Lambda_n, 0).
+
+    `impulses` columns are ordered per contact as (normal, tangent_1, ..., tangent_d).
+    """
+    worst = 0.0
+    col = 0
+    for mu_i, d in zip(mu, n_tangents, strict=True):
+        normal = impulses[:, col]
+        tangential = np.linalg.norm(impulses[:, col + 1 : col + 1 + d], axis=1)
+        worst = max(worst, float(np.max(tangential - mu_i * normal, initial=0.0)),
+                    float(np.max(-normal, initial=0.0)))
+        col += 1 + d
+    return worst
+
+
+def clock_checks(clock: np.ndarray, horizon: float, tolerance: float) -> tuple[bool, float]:
+    """(the clock never decreases by more than `tolerance`, |clock[-1] - horizon|)."""
+    monotone = bool(np.all(np.diff(clock) >= -tolerance))
+    return monotone, float(abs(clock[-1] - horizon))
