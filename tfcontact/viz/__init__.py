@@ -1,1 +1,30 @@
-"""tfcontact.viz"""
+"""tfcontact.viz: trajectory files, meshcat replay, figures.
+
+* `Trajectory`, `save_trajectory`, `load_trajectory`, `physical_time`: the `.npz` + `.json`
+  trajectory format (see `tfcontact.viz.trajectory`).
+* `replay`: live meshcat viewer or standalone HTML, in physical time.
+* `plot_trajectory`: matplotlib figures (PNG and SVG).
+"""
+
+from tfcontact.viz.replay import ReplayResult, replay
+from tfcontact.viz.trajectory import (
+    FORMAT_VERSION,
+    PhysicalSamples,
+    Trajectory,
+    frozen_intervals,
+    load_trajectory,
+    physical_time,
+    save_trajectory,
+)
+
+__all__ = [
+    "FORMAT_VERSION",
+    "PhysicalSamples",
+    "ReplayResult",
+    "Trajectory",
+    "frozen_intervals",
+    "load_trajectory",
+    "physical_time",
+    "replay",
+    "save_trajectory",
+]
