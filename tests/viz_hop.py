@@ -47,16 +47,26 @@ def _configuration(t):
     return np.stack([x, z, pitch, hip, leg], axis=1)
 
 
+def _velocity(t, stance):
+    """dq/dt at times t; `stance` picks the one-sided derivative at phase boundaries."""
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    stance = np.broadcast_to(stance, t.shape)
+    dfoot = np.where(t <= 0.5, 5.0 * (0.4 - 2.0 * t), 5.0 * (1.6 - 2.0 * t))
+    dleg = -0.12 * np.pi / 0.2 * np.cos(np.pi * (t - 0.4) / 0.2)
+    dleg = np.where(stance, dleg, 0.0)
+    dz = np.where(stance, 0.0, dfoot) + dleg
+    zero = 0.0 * t
+    return np.stack([0.5 + zero, dz, zero, zero, dleg], axis=1)
+
+
 def hop_trajectory(*, n_flight: int = 41, n_frozen: int = 6) -> Trajectory:
     """The analytic hop as a Trajectory in numerical time (one frozen piece at t = 0.4)."""
     t_a = np.linspace(0.0, 0.4, n_flight)
     t_b = np.linspace(0.4, 1.0, int(1.5 * n_flight))[1:]
     q_a, q_b = _configuration(t_a), _configuration(t_b)
-    h = 1e-6
-    v_a = (_configuration(t_a + h) - _configuration(t_a - h)) / (2 * h)
-    v_a[-1] = (_configuration(0.4) - _configuration(0.4 - h))[0] / h
-    v_b = (_configuration(t_b + h) - _configuration(t_b - h)) / (2 * h)
-    v_post = (_configuration(0.4 + h) - _configuration(0.4))[0] / h
+    v_a = _velocity(t_a, False)
+    v_b = _velocity(t_b, (t_b > 0.4) & (t_b < 0.6))
+    v_post = _velocity(0.4, True)[0]
     # the frozen piece: q constant, v moves from the pre- to the post-impact value
     w = np.linspace(0.0, 1.0, n_frozen)[1:, None]
     q_f = np.repeat(q_a[-1:], n_frozen - 1, axis=0)

@@ -6,7 +6,8 @@
 * `plot_trajectory`: matplotlib figures (PNG and SVG).
 """
 
-from tfcontact.viz.replay import ReplayResult, replay
+from tfcontact.viz.figures import plot_trajectory
+from tfcontact.viz.meshcat_replay import ReplayResult, replay
 from tfcontact.viz.trajectory import (
     FORMAT_VERSION,
     PhysicalSamples,
@@ -25,6 +26,7 @@ __all__ = [
     "frozen_intervals",
     "load_trajectory",
     "physical_time",
+    "plot_trajectory",
     "replay",
     "save_trajectory",
 ]

@@ -288,6 +288,8 @@ class ReplayResult:
         fps: key frames per second of animation time [1/s].
         duration: physical duration shown [s].
         speed: playback rate [-] (1 = real time).
+        scene: the recorded scene (`scene.commands()`: meshcat's msgpack commands,
+            `scene.get_scene()`: the standalone page).
     """
 
     html: Path | None
@@ -298,6 +300,17 @@ class ReplayResult:
     fps: float
     duration: float
     speed: float
+    scene: RecordingWindow
+
+    def close(self) -> None:
+        """Stop the live viewer's server process (started by `replay(live=True)`)."""
+        if self.visualizer is None:
+            return
+        window = self.visualizer.window
+        window.zmq_socket.close(linger=0)
+        if window.server_proc is not None:
+            window.server_proc.kill()
+            window.server_proc.wait()
 
 
 def _robot_models(traj: Trajectory, robot):
@@ -554,7 +567,8 @@ def replay(
         url = live_vis.url()
         print(f"tfcontact replay: meshcat viewer at {url}")
     return ReplayResult(html=html_path, html_bytes=html_bytes, url=url, visualizer=live_vis,
-                        n_frames=n_frames, fps=float(fps), duration=duration, speed=speed)
+                        n_frames=n_frames, fps=float(fps), duration=duration, speed=speed,
+                        scene=recorder)
 
 
 def _translation(p) -> np.ndarray:
