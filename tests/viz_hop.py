@@ -93,8 +93,8 @@ def hop_trajectory(*, n_flight: int = 41, n_frozen: int = 6) -> Trajectory:
                "locked_joints": {}, "contacts": CONTACTS},
         scene={"terrain": {"type": "flat", "height": 0.0}},
         solver={"nlp_count": 3, "iterations": 42, "complementarity_residual": 1e-9,
-                "history": [{"sigma": 1e-1, "complementarity": 3e-2, "iterations": 20},
-                            {"sigma": 1e-2, "complementarity": 4e-4, "iterations": 12},
-                            {"sigma": 1e-3, "complementarity": 1e-9, "iterations": 10}]},
+                "history": [{"sigma": 1e-1, "residual": 3e-2, "iterations": 20},
+                            {"sigma": 1e-2, "residual": 4e-4, "iterations": 12},
+                            {"sigma": 1e-3, "residual": 1e-9, "iterations": 10}]},
         verification={"note": "hand-made analytic hop"},
     )

@@ -38,7 +38,8 @@ def plot_trajectory(
     * `clock`: the clock t(tau) with frozen pieces shaded, and the speed of time s(tau).
     * `contacts`: gaps [m] and normal velocities [m/s] against tau and against t.
     * `homotopy`: complementarity residual per homotopy step, from
-      `traj.solver["history"]` (entries with `complementarity`, optionally `sigma`);
+      `traj.solver["history"]` (entries with `residual` (or `complementarity`), optionally
+      `sigma`: e.g. `dataclasses.asdict` of each `tfcontact.mpcc` `HomotopyStep`);
       written only when that history is present.
 
     Args:
@@ -159,7 +160,8 @@ def _history(solver: dict):
     for step in history:
         if not isinstance(step, dict):
             return None
-        value = step.get("complementarity", step.get("complementarity_residual"))
+        value = next((step[k] for k in ("complementarity", "complementarity_residual",
+                                         "residual") if k in step), None)
         if not isinstance(value, (int, float)) or not math.isfinite(value):
             return None
         residuals.append(float(value))

@@ -512,7 +512,9 @@ def replay(
         node.set_transform(_translation(c))
     vis["/Grid"].set_property("visible", False)
     vis["/Axes"].set_property("visible", False)
-    vis["/Cameras/default"].set_transform(_translation(center))
+    # meshcat's orbit controls look at the origin: move the scene so the motion is centred
+    # there (the ground and the robot alike, under one root node)
+    root.set_transform(_translation(-center))
     dist = 1.0 * extent + 0.35
     # the camera node is y-up (three.js): [x, z, -y] in the world's z-up coordinates
     vis["/Cameras/default/rotated/<object>"].set_property(
