@@ -386,3 +386,27 @@ def test_figures_without_history(tmp_path):
     assert sorted(p.name for p in paths) == ["clock.png", "contacts.png", "states.png"]
     with pytest.raises(InvalidInput, match="`formats` must be a non-empty subset"):
         plot_trajectory(_small(), tmp_path, formats=("jpg",))
+
+
+# --------------------------------------------------------------------- CLI
+
+
+def test_cli_replay_writes_html(tmp_path, monkeypatch, capsys):
+    import argparse
+
+    from tfcontact.viz import cli_replay
+
+    save_trajectory(tmp_path / "hop", hop_trajectory())
+    # the robot comes from the sidecar through tfcontact.robot; here the test's own models
+    monkeypatch.setattr("tfcontact.viz.meshcat_replay._robot_models",
+                        lambda traj, robot: hopper_models())
+    args = argparse.Namespace(trajectory=str(tmp_path / "hop.npz"),
+                              html=str(tmp_path / "hop.html"), open=False, speed=0.5)
+    assert cli_replay(args) == 0
+    out = capsys.readouterr().out
+    assert f"wrote {tmp_path / 'hop.html'}" in out and "61 frames" in out
+    assert (tmp_path / "hop.html").stat().st_size > 800_000
+    damaged = argparse.Namespace(trajectory=str(tmp_path / "nothing.npz"), html="x.html",
+                                 open=False)
+    with pytest.raises(TrajectoryFileError, match="nothing.npz' does not exist"):
+        cli_replay(damaged)

@@ -4,8 +4,10 @@
   trajectory format (see `tfcontact.viz.trajectory`).
 * `replay`: live meshcat viewer or standalone HTML, in physical time.
 * `plot_trajectory`: matplotlib figures (PNG and SVG).
+* `cli_replay`: the `tfcontact replay` subcommand.
 """
 
+from tfcontact.viz.cli import cli_replay
 from tfcontact.viz.figures import plot_trajectory
 from tfcontact.viz.meshcat_replay import ReplayResult, replay
 from tfcontact.viz.trajectory import (
@@ -23,6 +25,7 @@ __all__ = [
     "PhysicalSamples",
     "ReplayResult",
     "Trajectory",
+    "cli_replay",
     "frozen_intervals",
     "load_trajectory",
     "physical_time",

@@ -1,0 +1,57 @@
+"""`tfcontact replay TRAJECTORY [--html OUT] [--open] [--speed S]`: the viz side of the CLI."""
+
+from __future__ import annotations
+
+import argparse
+import time
+import webbrowser
+
+from tfcontact.viz.meshcat_replay import replay
+from tfcontact.viz.trajectory import load_trajectory
+
+
+def cli_replay(args: argparse.Namespace) -> int:
+    """Run `tfcontact replay` from parsed arguments.
+
+    Args (attributes of `args`):
+        trajectory: path of `NAME.npz` or `NAME.json`.
+        html: write a standalone page there instead of starting a live viewer.
+        open: open the page (or the live viewer) in the default browser.
+        speed: playback rate [-] (1 = real time; optional, default 1).
+        fps: key frames per second (optional, default 30).
+        forces: draw contact force arrows (optional, default False).
+
+    Without `--html` a live meshcat server is started on 127.0.0.1; the command then
+    waits until Ctrl-C and stops the server.
+
+    Returns:
+        The exit code (0).
+
+    Raises:
+        TrajectoryFileError: the file is missing, damaged or foreign.
+        RobotLoadError / InvalidInput: the robot in the sidecar cannot be rebuilt.
+    """
+    traj = load_trajectory(args.trajectory)
+    options = dict(speed=float(getattr(args, "speed", 1.0) or 1.0),
+                   fps=float(getattr(args, "fps", 30.0) or 30.0),
+                   forces=bool(getattr(args, "forces", False)))
+    if args.html:
+        result = replay(traj, html=args.html, **options)
+        print(f"wrote {result.html} ({result.html_bytes / 1e6:.2f} MB, {result.n_frames} "
+              f"frames, {result.duration:.3f} s of physical time at speed {result.speed:g})")
+        if args.open:
+            webbrowser.open(result.html.resolve().as_uri())
+        return 0
+    result = replay(traj, live=True, **options)
+    if args.open:
+        webbrowser.open(result.url)
+    print("the replay plays in the browser tab ('Animations' panel: play, reset, time);"
+          " press Ctrl-C to stop the viewer")
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        result.close()
+    return 0
