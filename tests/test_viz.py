@@ -278,7 +278,7 @@ def test_animation_follows_the_robot_and_contact_state(tmp_path):
     traj = hop_trajectory()
     model, visual = hopper_models()
     result, clips = _recorded_animation(traj, (model, visual), html=tmp_path / "h.html",
-                                        fps=20.0, speed=0.5)
+                                        fps=20.0, speed=0.5, forces=True)
     assert result.n_frames == 41 and result.duration == pytest.approx(1.0)
     # frame k shows physical time k * speed / fps; compare with Pinocchio at q(t) directly
     data, gdata = model.createData(), pin.GeometryData(visual)
@@ -300,6 +300,13 @@ def test_animation_follows_the_robot_and_contact_state(tmp_path):
     gap = np.interp(times, phys.t, phys.gap[:, 0])
     np.testing.assert_array_equal(shown, gap <= 1e-3)
     assert shown.any() and not shown.all()
+    # force arrows: 0.3 m for the largest force (60 N up in stance), hidden in flight
+    tracks = {tr["name"]: tr for tr in clips["/meshcat/tfcontact/contacts/0/force"]["tracks"]}
+    lengths = np.array([k["value"][1] for k in tracks[".scale"]["keys"]])
+    stance = (times > 0.4) & (times < 0.6)
+    np.testing.assert_allclose(lengths[stance], 0.3)
+    np.testing.assert_array_equal([k["value"] for k in tracks[".visible"]["keys"]],
+                                  lengths > 1e-4)
 
 
 def test_recording_window_gives_meshcat_static_html():

@@ -320,9 +320,9 @@ def _robot_models(traj: Trajectory, robot):
             raise InvalidInput(
                 "the trajectory has no `robot` entry: pass `robot=(model, visual_model)`"
             )
-        from tfcontact.robot import load_robot  # the layer above; imported on use
+        from tfcontact.robot import RobotSpec, load_robot  # the layer above; imported on use
 
-        loaded = load_robot(traj.robot)
+        loaded = load_robot(RobotSpec.from_dict(traj.robot))
         return loaded.model, loaded.visual_model
     if isinstance(robot, tuple) and len(robot) == 2:
         return robot
@@ -338,7 +338,7 @@ def _contacts(traj: Trajectory, model) -> list[tuple[int, float]]:
     """(frame id, radius) per contact, from `traj.robot['contacts']`."""
     specs = traj.robot.get("contacts", [])
     out = []
-    for k, spec in enumerate(specs):
+    for spec in specs:
         if isinstance(spec, dict):
             name, radius = spec.get("frame"), float(spec.get("radius", 0.0))
         else:
@@ -348,7 +348,6 @@ def _contacts(traj: Trajectory, model) -> list[tuple[int, float]]:
 
             raise FrameNotFound(name, [f.name for f in model.frames])
         out.append((model.getFrameId(name), radius))
-        del k
     if out and len(out) != traj.n_contacts:
         raise InvalidInput(
             f"`robot['contacts']` names {len(out)} frames but the trajectory has "
