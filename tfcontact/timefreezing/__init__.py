@@ -1,1 +1,59 @@
-"""tfcontact.timefreezing"""
+"""tfcontact.timefreezing: complementarity Lagrangian systems -> piecewise smooth systems.
+
+The time-freezing reformulation (DESIGN.md 4.1-4.5) removes the state jumps of impacts
+(and of hysteresis) by auxiliary dynamics on the prohibited region and a clock state that
+stops while they act. Entry points:
+
+* `time_freeze(cls, method=...)`: a `ComplementarityLagrangianSystem` -> `TimeFreezingSystem`
+  (`Inelastic()` Heaviside form with friction, `Elastic(stiffness)` Stewart form).
+* `hysteresis_system(...)`: a two-mode hysteresis -> `TimeFreezingSystem` (Stewart, Voronoi).
+* `with_speed_of_time`, `with_lagrange_cost`: the OCP layer's transformations.
+* `to_physical_time`: numerical-time solutions -> physical time with impacts as jumps.
+* `simulate_impacts`: an event-detecting reference simulation of the original system.
+"""
+
+from tfcontact.timefreezing.builder import time_freeze
+from tfcontact.timefreezing.cls import Cls, ComplementarityLagrangianSystem, Contact
+from tfcontact.timefreezing.elastic import Elastic, elastic_damping, frozen_duration
+from tfcontact.timefreezing.hysteresis import VORONOI_POINTS, hysteresis_system, push_speed
+from tfcontact.timefreezing.inelastic import Inelastic
+from tfcontact.timefreezing.physical import (
+    FROZEN_RATE_TOL,
+    Impact,
+    PhysicalTrajectory,
+    to_physical_time,
+)
+from tfcontact.timefreezing.reference import (
+    ReferenceImpact,
+    ReferenceSimulation,
+    simulate_impacts,
+)
+from tfcontact.timefreezing.system import (
+    TimeFreezingSystem,
+    with_lagrange_cost,
+    with_speed_of_time,
+)
+
+__all__ = [
+    "FROZEN_RATE_TOL",
+    "VORONOI_POINTS",
+    "Cls",
+    "ComplementarityLagrangianSystem",
+    "Contact",
+    "Elastic",
+    "Impact",
+    "Inelastic",
+    "PhysicalTrajectory",
+    "ReferenceImpact",
+    "ReferenceSimulation",
+    "TimeFreezingSystem",
+    "elastic_damping",
+    "frozen_duration",
+    "hysteresis_system",
+    "push_speed",
+    "simulate_impacts",
+    "time_freeze",
+    "to_physical_time",
+    "with_lagrange_cost",
+    "with_speed_of_time",
+]

@@ -1,0 +1,388 @@
+"""Tests of the time-freezing layer against closed forms.
+
+The expression tests evaluate the modes at points on switching surfaces and compute the
+Filippov sliding mode algebraically (DESIGN.md 4.3-4.5); the reference simulator is
+checked against free fall, restitution and Coulomb closed forms; the FESD simulations
+(further down) check the whole chain.
+"""
+
+import math
+
+import casadi as ca
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from tfcontact.errors import IncompatibleOptions, InvalidInput
+from tfcontact.fesd.system import HeavisideSystem, StewartSystem
+from tfcontact.scenes.particles import (
+    G,
+    bounce_times,
+    drop_time,
+    point_mass,
+    rod,
+)
+from tfcontact.timefreezing import (
+    VORONOI_POINTS,
+    Cls,
+    Contact,
+    Elastic,
+    Inelastic,
+    elastic_damping,
+    frozen_duration,
+    hysteresis_system,
+    simulate_impacts,
+    time_freeze,
+    to_physical_time,
+    with_lagrange_cost,
+    with_speed_of_time,
+)
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def modes_at(tf, y, u=()):
+    return np.asarray(tf.function()(y, np.asarray(u, dtype=float))).astype(float)
+
+
+def switching_gradients(tf, y):
+    c = tf.pss.switching
+    jac = ca.Function("dc", [tf.pss.x], [ca.jacobian(c, tf.pss.x)])
+    return np.asarray(jac(y))
+
+
+def sliding_weights(tf, y, u, columns, rows):
+    """Filippov weights theta over `columns` with d c_rows / dtau = 0 and sum(theta) = 1."""
+    F = modes_at(tf, y, u)[:, columns]
+    dc = switching_gradients(tf, y)[rows]
+    A = np.vstack([dc @ F, np.ones(len(columns))])
+    b = np.zeros(A.shape[0])
+    b[-1] = 1.0
+    theta = np.linalg.solve(A, b)
+    return theta, F @ theta
+
+
+# ----------------------------------------------------------------------------- bad input
+
+
+def _line():
+    q = ca.SX.sym("q")
+    v = ca.SX.sym("v")
+    return q, v
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"mu": -0.1}, r"`mu` must be >= 0 .* got -0.1"),
+        ({"a_n": 0.0}, r"`a_n` must be > 0 .* got 0.0"),
+        ({"a_n": -5.0}, r"`a_n` must be > 0 .* got -5.0"),
+        ({"eps_t": 0.0}, r"`eps_t` must be > 0 .* got 0.0"),
+        ({"restitution": 1.5}, r"`restitution` must be in \[0, 1\], got 1.5"),
+        ({"restitution": -0.2}, r"`restitution` must be in \[0, 1\], got -0.2"),
+        ({"mu": float("nan")}, r"`mu` must be finite"),
+        ({"mu": 0.3}, r"has `mu` = 0.3 but no `tangents`"),
+    ],
+)
+def test_bad_contact_parameters_are_rejected(kwargs, match):
+    q, _ = _line()
+    with pytest.raises(InvalidInput, match=match):
+        Contact(gap=q, **kwargs)
+
+
+def test_bad_systems_are_rejected():
+    q, v = _line()
+    with pytest.raises(InvalidInput, match=r"`contacts\[0\].gap` = 1 does not depend on `q`"):
+        Cls(q=q, v=v, u=ca.SX(0, 1), mass_matrix=1, forces=-G,
+            contacts=(Contact(gap=ca.SX(1)),))
+    with pytest.raises(InvalidInput, match=r"`q` has 2 entries but `v` has 1"):
+        Cls(q=ca.SX.sym("q", 2), v=v, u=ca.SX(0, 1), mass_matrix=1, forces=-G,
+            contacts=(Contact(gap=q),))
+    with pytest.raises(InvalidInput, match=r"`mass_matrix` must have shape \(1, 1\)"):
+        Cls(q=q, v=v, u=ca.SX(0, 1), mass_matrix=np.eye(2), forces=-G,
+            contacts=(Contact(gap=q),))
+    with pytest.raises(InvalidInput, match=r"`contacts` is empty"):
+        Cls(q=q, v=v, u=ca.SX(0, 1), mass_matrix=1, forces=-G, contacts=())
+    with pytest.raises(InvalidInput, match=r"depends on symbols \['v'\]"):
+        Cls(q=q, v=v, u=ca.SX(0, 1), mass_matrix=1, forces=-G, contacts=(Contact(gap=q + v),))
+    stranger = ca.SX.sym("stranger")
+    with pytest.raises(InvalidInput, match=r"`forces` depends on symbols \['stranger'\]"):
+        Cls(q=q, v=v, u=ca.SX(0, 1), mass_matrix=1, forces=stranger, contacts=(Contact(gap=q),))
+
+
+def test_incompatible_methods_are_rejected():
+    with pytest.raises(IncompatibleOptions, match="elastic time-freezing supports one contact"):
+        time_freeze(rod(), method=Elastic())
+    with pytest.raises(IncompatibleOptions, match="restitution > 0 but the `Inelastic`"):
+        time_freeze(point_mass(1, restitution=0.5), method=Inelastic())
+    with pytest.raises(IncompatibleOptions, match="elastic time-freezing has no friction"):
+        time_freeze(point_mass(2, mu=0.2, restitution=0.5))
+    with pytest.raises(InvalidInput, match=r"`stiffness` must be a finite number > 0"):
+        Elastic(stiffness=-1.0)
+    with pytest.raises(InvalidInput, match="`cls` must be a ComplementarityLagrangianSystem"):
+        time_freeze("ball")
+
+
+# ----------------------------------------------------------------------------- structure
+
+
+def test_inelastic_system_structure():
+    tf = time_freeze(point_mass(2, mu=0.3, controlled=True))
+    assert isinstance(tf.pss, HeavisideSystem)
+    assert tf.state_names == ("q_x", "q_z", "v_x", "v_z", "t")
+    assert tf.clock_index == 4 and tf.q_index == slice(0, 2) and tf.v_index == slice(2, 4)
+    assert tf.pss.n_switching == 3 and tf.region_names[0] == "ode"
+    # rhs == modes @ weights(alpha); the clock runs only in free flight
+    rhs = ca.Function("rhs", [tf.pss.x, tf.pss.u, tf.pss.alpha], [tf.pss.rhs])
+    y = [0.1, 0.2, -0.3, 0.4, 0.0]
+    np.testing.assert_allclose(np.asarray(rhs(y, [1, 2], [1, 1, 1])).ravel(),
+                               [-0.3, 0.4, 1.0, 2 - G, 1.0])
+    aux = np.asarray(rhs(y, [1, 2], [0, 0, 1])).ravel()  # in Q with v_t > 0
+    np.testing.assert_allclose(aux, [0, 0, -0.3 * 100, 100, 0])
+    aux = np.asarray(rhs(y, [1, 2], [0, 0, 0])).ravel()  # in Q with v_t < 0
+    np.testing.assert_allclose(aux, [0, 0, 0.3 * 100, 100, 0])
+    y0 = tf.initial_state([0.0, 1.0], [3.0, 0.0])
+    np.testing.assert_array_equal(y0, [0, 1, 3, 0, 0])
+
+
+# ----------------------------------------------------------------------------- sliding modes
+
+
+@pytest.mark.parametrize("u_z", [0.0, 0.5 * G, 0.9 * G])
+def test_persistent_contact_runs_the_clock_at_gamma(u_z):
+    """[AUTO23] Example 3: a_n = g, phi = -g + u_z, gamma = g / (2 g - u_z) (0.5 at rest)."""
+    cls = point_mass(2, a_n=G, controlled=True)
+    tf = time_freeze(cls)
+    y = np.array([0.3, 0.0, 1.5, 0.0, 2.0])  # on Sigma: gap = 0, v_n = 0, sliding at 1.5 m/s
+    u = [7.0, u_z]
+    theta, ydot = sliding_weights(tf, y, u, columns=[0, 1], rows=[1])
+    gamma_closed = G / (G - (-G + u_z))
+    assert theta[0] == pytest.approx(gamma_closed, rel=1e-12)
+    gamma_fun = ca.Function("gamma", [cls.q, cls.v, cls.u], [cls.gamma(0)])
+    assert float(gamma_fun(y[:2], y[2:4], u)) == pytest.approx(gamma_closed, rel=1e-12)
+    # the sliding mode is gamma * (f_DAE, 1): horizontal acceleration u_x, no vertical one
+    np.testing.assert_allclose(ydot, gamma_closed * np.array([1.5, 0.0, 7.0, 0.0, 1.0]),
+                               atol=1e-12)
+    # the Heaviside rhs reproduces it with alpha_q = alpha_vn = a, 2a - a^2 = gamma
+    a = 1 - math.sqrt(1 - gamma_closed)
+    rhs = ca.Function("rhs", [tf.pss.x, tf.pss.u, tf.pss.alpha], [tf.pss.rhs])
+    np.testing.assert_allclose(np.asarray(rhs(y, u, [a, a])).ravel(), ydot, atol=1e-12)
+
+
+def test_gamma_on_a_curved_obstacle_includes_the_centripetal_term():
+    """A unit mass on top of a sphere of radius R sliding at speed s: phi = -g + s^2/R."""
+    radius, speed, a_n = 2.0, 1.5, 30.0
+    q = ca.SX.sym("q", 2)
+    v = ca.SX.sym("v", 2)
+    cls = Cls(q=q, v=v, u=ca.SX(0, 1), mass_matrix=np.eye(2), forces=ca.SX(ca.DM([0, -G])),
+              contacts=(Contact(gap=ca.norm_2(q) - radius, a_n=a_n),))
+    tf = time_freeze(cls)
+    y = np.array([0.0, radius, speed, 0.0, 0.0])
+    theta, _ = sliding_weights(tf, y, [], columns=[0, 1], rows=[1])
+    phi = -G + speed**2 / radius
+    assert theta[0] == pytest.approx(a_n / (a_n - phi), rel=1e-12)
+    phi_fun = ca.Function("phi", [q, v], [cls.phi(0)])
+    assert float(phi_fun(y[:2], y[2:4])) == pytest.approx(phi, rel=1e-12)
+
+
+@pytest.mark.parametrize("mu", [0.1, 0.3, 0.5])
+def test_planar_slip_sliding_mode_is_coulomb(mu):
+    """Slipping (v_t > 0) on Sigma: v_t' / t' = u_x - mu (g - u_z) (unit mass)."""
+    cls = point_mass(2, mu=mu, a_n=50.0, controlled=True)
+    tf = time_freeze(cls)
+    y = np.array([0.0, 0.0, 1.0, 0.0, 0.0])
+    u = [2.0, 1.0]
+    theta, ydot = sliding_weights(tf, y, u, columns=[0, 1], rows=[1])  # ode and v_t > 0
+    assert np.all(theta > 0)
+    assert ydot[2] / ydot[4] == pytest.approx(u[0] - mu * (G - u[1]), rel=1e-12)
+    assert ydot[3] == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize(("mu", "sticks"), [(0.1, False), (0.2, False), (0.3, True), (0.5, True)])
+def test_planar_stick_is_a_sliding_mode_iff_friction_beats_the_push(mu, sticks):
+    """At rest on Sigma and v_t = 0 with push u_x = 2: stick needs mu g >= 2."""
+    tf = time_freeze(point_mass(2, mu=mu, a_n=50.0, controlled=True))
+    y = np.array([0.0, 0.0, 0.0, 0.0, 0.0])
+    theta, ydot = sliding_weights(tf, y, [2.0, 0.0], columns=[0, 1, 2], rows=[1, 2])
+    assert bool(np.all(theta >= 0)) == sticks
+    if sticks:
+        np.testing.assert_allclose(ydot[:4], 0.0, atol=1e-12)
+        assert ydot[4] == pytest.approx(50.0 / (50.0 + G), rel=1e-12)
+
+
+def test_3d_slip_and_stick_sliding_modes():
+    """3-D ([AUTO23] eq. (26)): slip deceleration mu g along -v_t; stick holds ||v_t|| = eps_t."""
+    mu, eps = 0.2, 1e-7
+    tf = time_freeze(point_mass(3, mu=mu, a_n=G, eps_t=eps))
+    vt = np.array([2.0, 1.0])
+    y = np.array([0, 0, 0, *vt, 0.0, 0.0])
+    theta, ydot = sliding_weights(tf, y, [], columns=[0, 1], rows=[1])
+    np.testing.assert_allclose(ydot[3:5] / ydot[6], -mu * G * vt / np.linalg.norm(vt),
+                               rtol=1e-12)
+    vt = np.array([0.6, 0.8]) * eps  # on the stick surface ||v_t|| = eps_t
+    y = np.array([0, 0, 0, *vt, 0.0, 0.0])
+    theta, ydot = sliding_weights(tf, y, [], columns=[0, 1, 2], rows=[1, 2])
+    assert np.all(theta >= 0)
+    assert theta[0] == pytest.approx(0.5, rel=1e-6)  # gamma = a_n / (a_n + g)
+    np.testing.assert_allclose(ydot[3:6], 0.0, atol=1e-12)
+
+
+def test_simultaneous_impact_of_a_flat_rod_pushes_both_ends_equally():
+    cls = rod(a_n=20.0)
+    tf = time_freeze(cls)
+    y = np.array([0.0, 0.0, 0.0, 0.0, -3.0, 0.0, 0.0])  # flat, both ends at the ground
+    rhs = ca.Function("rhs", [tf.pss.x, tf.pss.u, tf.pss.alpha], [tf.pss.rhs])
+    ydot = np.asarray(rhs(y, [], [0, 0, 0, 0])).ravel()  # both contacts in Q
+    np.testing.assert_allclose(ydot, [0, 0, 0, 0, 40.0, 0, 0], atol=1e-12)  # M^-1 (n1 + n2) a_n
+    ydot = np.asarray(rhs(y, [], [0, 0, 1, 1])).ravel()  # only the left end in Q
+    np.testing.assert_allclose(ydot, [0, 0, 0, 0, 20.0, -20.0 * 0.5 * 12, 0], atol=1e-12)
+
+
+# ----------------------------------------------------------------------------- elastic
+
+
+@pytest.mark.parametrize(("e", "k"), [(0.9, 10.0), (0.8, 100.0), (1.0, 10.0)])
+def test_elastic_auxiliary_oscillator_returns_minus_e_times_the_velocity(e, k):
+    cls = point_mass(1, restitution=e)
+    tf = time_freeze(cls, method=Elastic(stiffness=k))
+    assert isinstance(tf.pss, StewartSystem)
+    aux = ca.Function("aux", [tf.pss.x], [tf.modes[:, 1]])
+
+    def leave(tau, y):
+        return y[0]
+
+    leave.terminal, leave.direction = True, 1
+    with np.errstate(under="ignore"):  # scipy's minimum step at t = 0 underflows
+        sol = solve_ivp(lambda tau, y: np.asarray(aux(y)).ravel(), (0, 10), [0.0, -3.0, 0.7],
+                        events=leave, rtol=1e-12, atol=1e-12, first_step=1e-6)
+    assert sol.status == 1
+    v_out = sol.y_events[0][0][1]
+    assert v_out == pytest.approx(3.0 * e, rel=1e-9)
+    assert sol.t_events[0][0] == pytest.approx(frozen_duration(e, k), rel=1e-9)
+    assert sol.y_events[0][0][2] == 0.7  # the clock stands still
+    assert tf.parameter("damping") == elastic_damping(e, k)
+
+
+# ----------------------------------------------------------------------------- hysteresis
+
+
+def thermostat(a=5.0):
+    y = ca.SX.sym("y")
+    return hysteresis_system(y, ca.SX(0, 1), -0.2 * y + 10, -0.2 * y, y, (18.0, 20.0),
+                             push_gain=a, state_names=("temperature",))
+
+
+def test_hysteresis_sliding_modes_are_the_two_modes_with_clock_rate_one():
+    tf = thermostat()
+    assert tf.state_names == ("temperature", "w", "t") and tf.memory_index == 1
+    F = modes_at(tf, [19.0, 0.0, 0.0])
+    # on w = 0 (cells 1 and 2) theta = (1/2, 1/2) gives f_A with clock rate 1
+    np.testing.assert_allclose(0.5 * (F[:, 0] + F[:, 1]), [-0.2 * 19 + 10, 0, 1], atol=1e-12)
+    F = modes_at(tf, [19.0, 1.0, 0.0])
+    np.testing.assert_allclose(0.5 * (F[:, 2] + F[:, 3]), [-0.2 * 19, 0, 1], atol=1e-12)
+    g = ca.Function("g", [tf.pss.x], [tf.pss.indicators])
+    # cells: heating below w = 0, push-down above it (psi < 1), push-up right of psi + w = 1
+    assert int(np.argmin(np.asarray(g([19.0, -0.01, 0])))) == 0
+    assert int(np.argmin(np.asarray(g([19.0, 0.01, 0])))) == 1
+    assert int(np.argmin(np.asarray(g([20.02, 0.01, 0])))) == 2
+    assert int(np.argmin(np.asarray(g([19.0, 1.01, 0])))) == 3
+    np.testing.assert_allclose(VORONOI_POINTS[1], [0.25, 0.25])
+
+
+def test_hysteresis_push_fields_act_only_at_their_threshold():
+    tf = thermostat(a=5.0)
+    at_upper = modes_at(tf, [20.0, 0.5, 3.0])
+    assert at_upper[1, 1] == 0.0  # push-down vanishes at psi = 1
+    assert at_upper[1, 2] == pytest.approx(2.5)  # push-up a/2, clock frozen
+    assert at_upper[2, 2] == 0.0
+    at_lower = modes_at(tf, [18.0, 0.5, 3.0])
+    assert at_lower[1, 2] == 0.0  # push-up vanishes at psi = 0
+    assert at_lower[1, 1] == pytest.approx(-2.5)
+
+
+# ----------------------------------------------------------------------------- OCP helpers
+
+
+def test_speed_of_time_and_lagrange_cost():
+    tf = time_freeze(point_mass(2, mu=0.3, controlled=True))
+    fast = with_speed_of_time(tf)
+    assert fast.pss.control_names == ("u_x", "u_z", "s") and fast.speed_of_time_index == 2
+    rhs = ca.Function("rhs", [fast.pss.x, fast.pss.u, fast.pss.alpha], [fast.pss.rhs])
+    y = [0.0, 1.0, 1.0, 0.0, 0.0]
+    np.testing.assert_allclose(np.asarray(rhs(y, [0, 0, 3.0], [1, 1, 1])).ravel(),
+                               3.0 * np.array([1.0, 0.0, 0.0, -G, 1.0]))
+    with pytest.raises(IncompatibleOptions, match="already has a speed of time"):
+        with_speed_of_time(fast)
+    costly = with_lagrange_cost(fast, ca.sumsqr(fast.pss.u[:2]))
+    assert costly.state_names == ("q_x", "q_z", "v_x", "v_z", "cost", "t")
+    assert costly.cost_index == 4 and costly.clock_index == 5
+    rhs = ca.Function("rhs", [costly.pss.x, costly.pss.u, costly.pss.alpha], [costly.pss.rhs])
+    y = [0.0, 1.0, 1.0, 0.0, 0.0, 0.0]
+    out = np.asarray(rhs(y, [1.0, 2.0, 3.0], [1, 1, 1])).ravel()
+    assert out[4] == pytest.approx(3.0 * 5.0)  # s L in free flight
+    out = np.asarray(rhs(y, [1.0, 2.0, 3.0], [0, 0, 1])).ravel()
+    assert out[4] == 0.0 and out[5] == 0.0  # nothing while frozen
+    stewart = with_lagrange_cost(with_speed_of_time(thermostat()), ca.SX(1.0))
+    assert stewart.pss.n_x == 4 and stewart.clock_index == 3
+
+
+# ----------------------------------------------------------------------------- physical time
+
+
+def exact_drop_solution(height=1.0, a_n=G, tau_end=2.0, n=2001):
+    """The exact time-freezing solution of a 1-D ball dropped from rest (inelastic):
+    free fall to tau_1 = sqrt(2h/g), frozen while v rises at a_n to 0, then at rest with
+    the clock at the rate gamma = a_n / (a_n + g)."""
+    t1 = drop_time(height)
+    v1 = -G * t1
+    tau2 = t1 - v1 / a_n
+    gamma = a_n / (a_n + G)
+    tau = np.unique(np.concatenate([np.linspace(0, tau_end, n), [t1, tau2]]))
+    q = np.where(tau < t1, height - 0.5 * G * tau**2, 0.0)
+    v = np.where(tau < t1, -G * tau, np.where(tau < tau2, v1 + a_n * (tau - t1), 0.0))
+    t = np.where(tau < t1, tau, np.where(tau < tau2, t1, t1 + gamma * (tau - tau2)))
+    return tau, np.column_stack([q, v, t]), t1, v1
+
+
+def test_physical_time_recovery_of_an_exact_drop():
+    tf = time_freeze(point_mass(1, a_n=G))
+    tau, y, t1, v1 = exact_drop_solution()
+    phys = to_physical_time(tf, tau, y)
+    assert len(phys.impacts) == 1
+    impact = phys.impacts[0]
+    assert impact.time == pytest.approx(t1, abs=1e-14)
+    assert impact.pre[1] == pytest.approx(v1) and impact.post[1] == 0.0
+    assert impact.normal_impulse[0] == pytest.approx(-v1, rel=1e-12)  # m |v-| [N s]
+    assert np.all(np.diff(phys.t) >= 0)
+    assert np.count_nonzero(np.diff(phys.t) == 0) == 1  # the jump: pre and post at t1
+    assert phys.t[-1] == pytest.approx(y[-1, 2])
+    assert len(phys.segments()) == 2
+
+
+# ----------------------------------------------------------------------------- reference
+
+
+def test_reference_simulator_drop_and_bounces():
+    sim = simulate_impacts(point_mass(1), [1.0, 0.0], None, 1.0)
+    assert sim.impact_times == pytest.approx([drop_time(1.0)], abs=1e-10)
+    np.testing.assert_allclose(sim.final_state(), [0, 0], atol=1e-12)
+    sim = simulate_impacts(point_mass(1, restitution=0.9), [1.0, 0.0], None, 2.0)
+    np.testing.assert_allclose(sim.impact_times, bounce_times(1.0, 0.9, 3), rtol=1e-9)
+    for impact in sim.impacts:
+        assert impact.post[1] == pytest.approx(-0.9 * impact.pre[1], rel=1e-12)
+
+
+def test_reference_simulator_coulomb_stop_and_lift_off():
+    mu = 0.2
+    sim = simulate_impacts(point_mass(3, mu=mu), [0, 0, 0, 2, 1, 0], None, 3.0)
+    speed = math.hypot(2, 1)
+    assert [m for _, m in sim.modes] == ["slip", "stick"]
+    assert sim.modes[1][0] == pytest.approx(speed / (mu * G), rel=1e-9)
+    end = speed**2 / (2 * mu * G) * np.array([2, 1]) / speed
+    np.testing.assert_allclose(sim.final_state()[:2], end, rtol=1e-9)
+    # [AUTO23] Example 3: u_z = 2 g (t - 1) beats gravity at t = 1.5
+    sim = simulate_impacts(point_mass(2, controlled=True), [0, 1, 0, 0],
+                           lambda t: np.array([7.0, 0.0 if t < 1 else 2 * G * (t - 1)]), 2.0,
+                           max_step=0.01)
+    assert [m for _, m in sim.modes] == ["free", "slip", "free"]
+    assert sim.modes[2][0] == pytest.approx(1.5, abs=1e-9)

@@ -1,0 +1,133 @@
+"""Time-freezing for inelastic impacts with Coulomb friction, any number of contacts.
+
+DESIGN.md 4.3-4.4, PROBLEMS.md 0.3, [AUTO23] sections 3-4. State y = (q, v, t).
+Per contact i the switching functions are
+
+    c_q,i  = f_c,i(q)                       (gap)
+    c_vn,i = n_i(q)^T v                     (normal velocity)
+    c_vt,i = b_i(q)^T v                     (planar friction, n_t = 1)
+    c_vt,i = ||B_i(q)^T v||_eps - eps_t     (3-D friction, n_t = 2, see below)
+
+with step variables alpha_q,i, alpha_vn,i, alpha_vt,i. The modes are
+
+    f_ODE     = (v, M^{-1} f_v, 1)                        (free flight, clock runs)
+    f_n,i     = (0, M^{-1} n_i a_n, 0)                    (frictionless contact)
+    planar:  f_+,i = (0, M^{-1} (n_i - mu b_i) a_n, 0)    (v_t > 0)
+             f_-,i = (0, M^{-1} (n_i + mu b_i) a_n, 0)    (v_t < 0)
+    3-D:     f_+,i = (0, M^{-1} (n_i a_n - B_i mu a_n v_t/||v_t||_eps), 0)   (||v_t|| > eps_t)
+             f_-,i = (0, M^{-1} (n_i a_n + B_i v_t), 0)                       (||v_t|| < eps_t)
+
+The 3-D pair is [AUTO23] eq. (26) and section 4.4: exact Coulomb slip for
+||v_t|| > eps_t; inside the eps_t-ball lambda_t = v_t pushes ||v_t|| out to eps_t, so
+stick is a sliding mode with a velocity drift eps_t. (DESIGN.md 4.4 agrees; nosnoc's
+code divides by ||v_t + eps_t|| instead.) To keep every expression and its derivative
+finite at v_t = 0 (a ball dropped straight down starts there) the norm is smoothed,
+||v_t||_eps = sqrt(v_t^T v_t + eps_t^2), and the switching function is
+c_vt = ||v_t||_eps - sqrt(2) eps_t, which is zero exactly on ||v_t|| = eps_t; the
+relative error of the slip force is below eps_t^2 / (2 ||v_t||^2).
+
+The Heaviside product form (DESIGN.md 4.4) combines the contacts:
+
+    theta_ODE = prod_i (alpha_q,i + alpha_vn,i - alpha_q,i alpha_vn,i)
+    theta_+,i = (1 - alpha_q,i)(1 - alpha_vn,i) alpha_vt,i
+    theta_-,i = (1 - alpha_q,i)(1 - alpha_vn,i)(1 - alpha_vt,i)
+    theta_n,i = (1 - alpha_q,i)(1 - alpha_vn,i)          (mu_i = 0)
+
+so simultaneous impacts add their auxiliary fields while the clock is frozen.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+
+from tfcontact.errors import IncompatibleOptions
+from tfcontact.fesd.system import HeavisideSystem
+from tfcontact.timefreezing.cls import ComplementarityLagrangianSystem
+from tfcontact.timefreezing.system import TimeFreezingSystem
+
+
+def smooth_norm(vt: ca.SX, eps: float) -> ca.SX:
+    """||v_t||_eps = sqrt(v_t^T v_t + eps^2): smooth everywhere, >= eps."""
+    return ca.sqrt(ca.sumsqr(vt) + eps**2)
+
+
+@dataclass(frozen=True)
+class Inelastic:
+    """Inelastic impacts (restitution 0) with Coulomb friction; Heaviside-step form.
+
+    The gains a_n and eps_t are per contact (`Contact.a_n`, `Contact.eps_t`).
+    """
+
+    def build(self, cls: ComplementarityLagrangianSystem) -> TimeFreezingSystem:
+        """The time-freezing PSS of `cls` (module docstring)."""
+        bad = [c.name for c in cls.contacts if c.restitution != 0.0]
+        if bad:
+            raise IncompatibleOptions(
+                f"contacts {bad} have restitution > 0 but the `Inelastic` method was chosen: "
+                "use `Elastic()` (single frictionless contact) or set restitution = 0"
+            )
+        n = cls.n_q
+        t = ca.SX.sym("t")
+        y = ca.vertcat(cls.q, cls.v, t)
+        zeros_q = ca.SX.zeros(n, 1)
+        f_ode = ca.vertcat(cls.v, cls.acceleration, 1)
+        switching, alphas, alpha_names = [], [], []
+        modes, weights, region_names = [f_ode], [], ["ode"]
+        theta_ode = ca.SX(1)
+        aux_weights, aux_modes, aux_names = [], [], []
+        for i, contact in enumerate(cls.contacts):
+            name = contact.name
+            normal = contact.normal
+            a_q = ca.SX.sym(f"alpha_q_{name}")
+            a_n = ca.SX.sym(f"alpha_vn_{name}")
+            switching += [contact.gap, cls.normal_velocity(i)]
+            alphas += [a_q, a_n]
+            alpha_names += [f"gap_{name}", f"vn_{name}"]
+            theta_ode = theta_ode * (a_q + a_n - a_q * a_n)
+            in_q = (1 - a_q) * (1 - a_n)
+            if not contact.has_friction:
+                push = cls.solve_mass(normal * contact.a_n)
+                aux_modes.append(ca.vertcat(zeros_q, push, 0))
+                aux_weights.append(in_q)
+                aux_names.append(f"aux_n_{name}")
+                continue
+            a_t = ca.SX.sym(f"alpha_vt_{name}")
+            alphas.append(a_t)
+            alpha_names.append(f"vt_{name}")
+            tangents = contact.tangents
+            vt = cls.tangential_velocity(i)
+            gain = contact.mu * contact.a_n
+            if contact.n_tangents == 1:
+                switching.append(vt)
+                plus = normal * contact.a_n - tangents * gain
+                minus = normal * contact.a_n + tangents * gain
+            else:
+                norm = smooth_norm(vt, contact.eps_t)
+                switching.append(norm - math.sqrt(2.0) * contact.eps_t)
+                plus = normal * contact.a_n - ca.mtimes(tangents, vt) * (gain / norm)
+                minus = normal * contact.a_n + ca.mtimes(tangents, vt)
+            aux_modes += [ca.vertcat(zeros_q, cls.solve_mass(plus), 0),
+                          ca.vertcat(zeros_q, cls.solve_mass(minus), 0)]
+            aux_weights += [in_q * a_t, in_q * (1 - a_t)]
+            aux_names += [f"aux_plus_{name}", f"aux_minus_{name}"]
+        weights = ca.vertcat(theta_ode, *aux_weights)
+        modes = ca.horzcat(*modes, *aux_modes)
+        region_names += aux_names
+        alpha = ca.vertcat(*alphas)
+        rhs = ca.mtimes(modes, weights)
+        state_names = (*cls.q_names, *cls.v_names, "t")
+        pss = HeavisideSystem(
+            x=y, u=cls.u, alpha=alpha, rhs=rhs, switching=ca.vertcat(*switching),
+            state_names=state_names, control_names=cls.control_names,
+        )
+        return TimeFreezingSystem(
+            pss=pss, kind="inelastic", clock_index=2 * n, q_index=slice(0, n),
+            v_index=slice(n, 2 * n), modes=modes, weights=weights,
+            region_names=tuple(region_names), cls=cls,
+            info=(("alpha_names", tuple(alpha_names)),
+                  ("a_n", tuple(c.a_n for c in cls.contacts)),
+                  ("eps_t", tuple(c.eps_t for c in cls.contacts))),
+        )

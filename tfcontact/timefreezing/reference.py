@@ -1,0 +1,409 @@
+"""A reference simulator of the ORIGINAL system with impacts (for verification).
+
+`simulate_impacts` integrates a CLS with one point contact event by event with
+`scipy.integrate.solve_ivp` (DOP853, tight tolerances) and treats the nonsmooth events
+exactly, without any time-freezing:
+
+* free flight: q' = v, v' = M^{-1} f_v; event gap(q) = 0 from above (impact).
+* impact (Newton restitution with Coulomb friction): Lambda_n = -(1 + e) v_n- / D,
+  then the tangential impulse Lambda_t = -v_t- / w (stick) if that lies in the cone
+  ||Lambda_t|| <= mu Lambda_n, else Lambda_t = -mu Lambda_n v_t- / ||v_t-|| (slip);
+  v+ = v- + M^{-1} (n Lambda_n + B Lambda_t). For e = 0 this is exactly the impulse of the
+  inelastic time-freezing auxiliary dynamics ([AUTO23] section 4.3, a_t = mu a_n).
+  A bounce slower than `rest_velocity` ends in persistent contact (no Zeno cascade).
+* persistent contact, as the index-reduced DAE ([AUTO23] eqs. (13), (22), (23)):
+  slip: lambda_t = -mu lambda_n v_t/||v_t||, lambda_n from n^T v' + (dn/dt)^T v = 0;
+  stick: (lambda_n, lambda_t) from the acceleration-level equations of n^T v = 0 and
+  B^T v = 0. Events: lambda_n = 0 (lift-off), a sign change of v_t along the direction
+  it had when the slip phase began (slip -> stick check), ||lambda_t|| = mu lambda_n
+  (stick -> slip, slipping along -lambda_t).
+
+Limits (checked where possible, raised as IncompatibleOptions):
+* one contact only;
+* at contact, B^T M^{-1} n = 0 and B^T M^{-1} B = w I (kinetic orthogonality and an
+  isotropic tangent metric), true for particles, balls and blocks whose contact point is
+  the centre of mass' projection;
+* the gap is kept by the index-reduced dynamics without stabilisation: the position
+  drift is of the integrator's tolerance order for curved gaps and zero for affine ones;
+* the slip-stop event in 3-D uses v_t . v_t(start of slip), exact while the slip direction
+  is constant (e.g. a ball sliding with no tangential force but friction); a rotating slip
+  direction could delay it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from tfcontact.errors import IncompatibleOptions, InvalidInput
+from tfcontact.timefreezing.cls import ComplementarityLagrangianSystem
+
+FREE, SLIP, STICK = "free", "slip", "stick"
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceImpact:
+    """An impact of the reference simulation.
+
+    Attributes:
+        time: impact time [s]; pre, post: x = (q, v) before and after;
+        normal_impulse: Lambda_n [N s]; tangential_impulse: Lambda_t [N s], shape (n_t,).
+    """
+
+    time: float
+    pre: np.ndarray
+    post: np.ndarray
+    normal_impulse: float
+    tangential_impulse: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceSimulation:
+    """The result of `simulate_impacts`.
+
+    Attributes:
+        t: times [s], shape (K,), non-decreasing; an impact repeats its time (pre, post).
+        x: states (q, v), shape (K, 2 n_q).
+        impacts: the impacts in order.
+        modes: (start time [s], mode) for every phase: "free", "slip" or "stick".
+        status: "success" or "max_events" (stopped early, see `message`).
+        message: what happened.
+        n_rhs: right-hand-side evaluations.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    impacts: tuple[ReferenceImpact, ...]
+    modes: tuple[tuple[float, str], ...]
+    status: str
+    message: str
+    n_rhs: int
+
+    @property
+    def impact_times(self) -> np.ndarray:
+        return np.array([imp.time for imp in self.impacts])
+
+    def final_state(self) -> np.ndarray:
+        return self.x[-1].copy()
+
+
+class _Model:
+    """Numeric terms of a one-contact CLS, from one CasADi function."""
+
+    def __init__(self, cls: ComplementarityLagrangianSystem):
+        contact = cls.contacts[0]
+        self.n = cls.n_q
+        self.n_u = cls.n_u
+        self.n_t = contact.n_tangents if contact.mu > 0 else 0
+        self.mu = contact.mu
+        self.e = contact.restitution
+        q, v, u = cls.q, cls.v, cls.u
+        normal = contact.normal
+        tangents = contact.tangents if self.n_t else ca.SX(self.n, 0)
+        vn = ca.mtimes(normal.T, v)
+        vt = ca.mtimes(tangents.T, v)
+        drift_n = ca.mtimes(ca.jacobian(vn, q), v)
+        drift_t = ca.mtimes(ca.jacobian(vt, q), v) if self.n_t else ca.SX(0, 1)
+        jac = ca.horzcat(normal, tangents)
+        minv_jac = cls.solve_mass(jac)
+        self.fun = ca.Function(
+            "reference_terms", [q, v, u],
+            [cls.acceleration, minv_jac, jac, ca.vertcat(drift_n, drift_t), contact.gap],
+        )
+        self.calls = 0
+
+    def terms(self, x: np.ndarray, u: np.ndarray):
+        self.calls += 1
+        q, v = x[: self.n], x[self.n :]
+        a_free, minv_jac, jac, drift, gap = (np.asarray(r) for r in self.fun(q, v, u))
+        return a_free.ravel(), minv_jac, jac, drift.ravel(), float(gap.ravel()[0])
+
+
+def simulate_impacts(
+    cls: ComplementarityLagrangianSystem,
+    x0: np.ndarray,
+    u_of_t: Callable[[float], np.ndarray] | None,
+    T: float,
+    *,
+    rtol: float = 1e-11,
+    atol: float = 1e-12,
+    max_events: int = 200,
+    rest_velocity: float = 1e-7,
+    max_step: float = np.inf,
+) -> ReferenceSimulation:
+    """Event-detecting simulation of the CLS with impacts (module docstring).
+
+    Main arguments:
+        cls: a CLS with exactly one contact.
+        x0: initial state (q0, v0), shape (2 n_q,), with gap(q0) >= 0.
+        u_of_t: control as a function of physical time, returning shape (n_u,); None when
+            the system has no controls.
+        T: final physical time [s].
+
+    Other arguments:
+        rtol, atol: solve_ivp tolerances (DOP853).
+        max_events: stop (status "max_events") after this many mode changes.
+        rest_velocity: an impact with |v_n-| below it [m/s] ends in persistent contact.
+        max_step: solve_ivp's max_step [s] (limit it when u_of_t has kinks).
+
+    Returns:
+        A `ReferenceSimulation`.
+
+    Raises:
+        InvalidInput: wrong shapes, T <= 0, or x0 inside the obstacle.
+        IncompatibleOptions: more than one contact or non-orthogonal contact directions.
+    """
+    if not isinstance(cls, ComplementarityLagrangianSystem):
+        raise InvalidInput(f"`cls` must be a ComplementarityLagrangianSystem, got {type(cls)}")
+    if cls.n_contacts != 1:
+        raise IncompatibleOptions(
+            f"`simulate_impacts` handles one contact, `cls` has {cls.n_contacts}"
+        )
+    if not (math.isfinite(T) and T > 0):
+        raise InvalidInput(f"`T` must be finite and > 0, got {T!r}")
+    model = _Model(cls)
+    x0 = np.asarray(x0, dtype=float).ravel()
+    if x0.shape != (2 * model.n,):
+        raise InvalidInput(f"`x0` must have shape ({2 * model.n},), got {x0.shape}")
+    if u_of_t is None:
+        if model.n_u:
+            raise InvalidInput(f"`u_of_t` is None but the system has {model.n_u} controls")
+
+        def control(t: float) -> np.ndarray:
+            return np.zeros(0)
+    else:
+        def control(t: float) -> np.ndarray:
+            value = np.atleast_1d(np.asarray(u_of_t(t), dtype=float))
+            if value.shape != (model.n_u,):
+                raise InvalidInput(
+                    f"`u_of_t` must return shape ({model.n_u},), got {value.shape}"
+                )
+            return value
+
+    gap0 = model.terms(x0, control(0.0))[4]
+    if gap0 < -1e-12:
+        raise InvalidInput(f"`x0` is inside the obstacle: gap(q0) = {gap0:.3e} < 0")
+
+    ts, xs = [np.array([0.0])], [x0[None, :]]
+    impacts: list[ReferenceImpact] = []
+    modes: list[tuple[float, str]] = []
+    t_cur, x_cur = 0.0, x0.copy()
+    n = model.n
+    _, _, jac0, _, _ = model.terms(x_cur, control(0.0))
+    contact_now = gap0 <= 1e-12 and jac0[:, 0] @ x_cur[n:] <= rest_velocity
+    mode, direction = (_contact_mode(model, x_cur, control(0.0)) if contact_now
+                       else (FREE, None))
+    status, message = "success", f"reached T = {T}"
+    events_used = 0
+    while t_cur < T:
+        modes.append((t_cur, mode))
+        rhs, events = _phase(model, mode, direction, control, x_cur)
+        with np.errstate(under="ignore"):  # scipy's step-size floor at t = 0 underflows
+            sol = solve_ivp(rhs, (t_cur, T), x_cur, method="DOP853", rtol=rtol, atol=atol,
+                            events=events, max_step=max_step)
+        if sol.status == -1:
+            raise InvalidInput(f"reference integration failed in mode {mode}: {sol.message}")
+        ts.append(sol.t[1:])
+        xs.append(sol.y.T[1:])
+        t_cur, x_cur = float(sol.t[-1]), sol.y[:, -1].copy()
+        if sol.status == 0:
+            break
+        events_used += 1
+        if events_used > max_events:
+            status, message = "max_events", f"stopped after {max_events} events at t = {t_cur}"
+            break
+        fired = [i for i, te in enumerate(sol.t_events) if te.size]
+        u_now = control(t_cur)
+        if mode == FREE:
+            pre = x_cur.copy()
+            x_cur, lam_n, lam_t, rest = _impact(model, x_cur, u_now, rest_velocity)
+            impacts.append(ReferenceImpact(t_cur, pre, x_cur.copy(), lam_n, lam_t))
+            ts.append(np.array([t_cur]))
+            xs.append(x_cur[None, :])
+            mode, direction = (_contact_mode(model, x_cur, u_now) if rest else (FREE, None))
+        elif 0 in fired:  # lift-off
+            mode, direction = FREE, None
+        elif mode == SLIP:  # the tangential velocity reached zero
+            x_cur = _zero_tangential(model, x_cur, u_now)
+            mode, direction = _contact_mode(model, x_cur, u_now, stick_first=True)
+        else:  # stick -> slip (or lift-off, handled above)
+            mode, direction = _contact_mode(model, x_cur, u_now, force_slip=True)
+    return ReferenceSimulation(
+        t=np.concatenate(ts), x=np.concatenate(xs), impacts=tuple(impacts),
+        modes=tuple(modes), status=status, message=message, n_rhs=model.calls,
+    )
+
+
+def _split(model: _Model, minv_jac: np.ndarray, jac: np.ndarray):
+    return minv_jac[:, :1], minv_jac[:, 1:], jac[:, :1], jac[:, 1:]
+
+
+def _stick_forces(model: _Model, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+    a_free, minv_jac, jac, drift, _ = model.terms(x, u)
+    k = 1 + model.n_t
+    delassus = jac[:, :k].T @ minv_jac[:, :k]
+    rhs = jac[:, :k].T @ a_free + drift[:k]
+    return np.linalg.solve(delassus, -rhs)
+
+
+def _slip_normal_force(model: _Model, x: np.ndarray, u: np.ndarray, that: np.ndarray) -> float:
+    a_free, minv_jac, jac, drift, _ = model.terms(x, u)
+    minv_n, minv_b, normal, _ = _split(model, minv_jac, jac)
+    phi = normal[:, 0] @ a_free + drift[0]
+    effective = normal[:, 0] @ minv_n[:, 0]
+    if model.n_t:
+        effective -= model.mu * normal[:, 0] @ (minv_b @ that)
+    return -phi / effective
+
+
+def _contact_mode(
+    model: _Model, x: np.ndarray, u: np.ndarray, stick_first: bool = False,
+    force_slip: bool = False,
+):
+    """The contact mode at a state on the contact surface: free, slip (with a direction)
+    or stick."""
+    n = model.n
+    a_free, minv_jac, jac, drift, _ = model.terms(x, u)
+    phi = jac[:, 0] @ a_free + drift[0]
+    if phi > 0:
+        return FREE, None
+    if model.n_t == 0:
+        return SLIP, None
+    vt = jac[:, 1:].T @ x[n:]
+    speed = np.linalg.norm(vt)
+    if speed > 1e-12 and not stick_first:
+        return SLIP, vt / speed
+    lam = _stick_forces(model, x, u)
+    if lam[0] < 0:
+        return FREE, None
+    lam_t = lam[1:]
+    if not force_slip and np.linalg.norm(lam_t) <= model.mu * lam[0] * (1 + 1e-12):
+        return STICK, None
+    return SLIP, -lam_t / np.linalg.norm(lam_t)
+
+
+def _zero_tangential(model: _Model, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Remove the O(tolerance) tangential velocity left at a slip-stop event."""
+    n = model.n
+    _, minv_jac, jac, _, _ = model.terms(x, u)
+    minv_b, b = minv_jac[:, 1:], jac[:, 1:]
+    vt = b.T @ x[n:]
+    w = b.T @ minv_b
+    x = x.copy()
+    x[n:] -= minv_b @ np.linalg.solve(w, vt)
+    return x
+
+
+def _phase(model: _Model, mode: str, direction, control, x_start):
+    n = model.n
+    mu = model.mu
+
+    def tangent_direction(vt: np.ndarray) -> np.ndarray:
+        speed = np.linalg.norm(vt)
+        return vt / speed if speed > 1e-12 else direction
+
+    if mode == FREE:
+        def rhs(t, x):
+            a_free = model.terms(x, control(t))[0]
+            return np.concatenate([x[n:], a_free])
+
+        def touchdown(t, x):
+            return model.terms(x, control(t))[4]
+
+        touchdown.terminal, touchdown.direction = True, -1
+        return rhs, [touchdown]
+
+    if mode == SLIP:
+        def forces(t, x):
+            u = control(t)
+            a_free, minv_jac, jac, drift, _ = model.terms(x, u)
+            if model.n_t == 0:
+                lam_n = -(jac[:, 0] @ a_free + drift[0]) / (jac[:, 0] @ minv_jac[:, 0])
+                return a_free + minv_jac[:, 0] * lam_n, lam_n
+            that = tangent_direction(jac[:, 1:].T @ x[n:])
+            lam_n = _slip_normal_force(model, x, u, that)
+            lam_t = -mu * lam_n * that
+            return a_free + minv_jac[:, 0] * lam_n + minv_jac[:, 1:] @ lam_t, lam_n
+
+        def rhs(t, x):
+            return np.concatenate([x[n:], forces(t, x)[0]])
+
+        def lift_off(t, x):
+            return forces(t, x)[1]
+
+        lift_off.terminal, lift_off.direction = True, -1
+        events = [lift_off]
+        if model.n_t:
+            reference = direction.copy()
+
+            def stop(t, x):
+                jac = model.terms(x, control(t))[2]
+                return float((jac[:, 1:].T @ x[n:]) @ reference)
+
+            stop.terminal, stop.direction = True, -1
+            events.append(stop)
+        return rhs, events
+
+    # STICK
+    def stick(t, x):
+        u = control(t)
+        a_free, minv_jac, jac, drift, _ = model.terms(x, u)
+        k = 1 + model.n_t
+        lam = np.linalg.solve(jac[:, :k].T @ minv_jac[:, :k], -(jac[:, :k].T @ a_free + drift[:k]))
+        return a_free + minv_jac[:, :k] @ lam, lam
+
+    def rhs(t, x):
+        return np.concatenate([x[n:], stick(t, x)[0]])
+
+    def lift_off(t, x):
+        return stick(t, x)[1][0]
+
+    def cone(t, x):
+        lam = stick(t, x)[1]
+        return mu * lam[0] - np.linalg.norm(lam[1:])
+
+    lift_off.terminal, lift_off.direction = True, -1
+    cone.terminal, cone.direction = True, -1
+    return rhs, [lift_off, cone]
+
+
+def _impact(model: _Model, x: np.ndarray, u: np.ndarray, rest_velocity: float):
+    n = model.n
+    _, minv_jac, jac, _, _ = model.terms(x, u)
+    minv_n, minv_b, normal, tangents = _split(model, minv_jac, jac)
+    v = x[n:]
+    vn = float(normal[:, 0] @ v)
+    delassus = float(normal[:, 0] @ minv_n[:, 0])
+    scale = max(1.0, float(np.abs(minv_jac).max()))
+    if model.n_t:
+        cross = tangents.T @ minv_n[:, 0]
+        w_t = tangents.T @ minv_b
+        w = float(np.mean(np.diag(w_t)))
+        if np.abs(cross).max() > 1e-9 * scale or np.abs(w_t - w * np.eye(model.n_t)).max() > (
+            1e-9 * scale
+        ):
+            raise IncompatibleOptions(
+                "`simulate_impacts` needs B^T M^{-1} n = 0 and B^T M^{-1} B = w I at contact; "
+                f"got B^T M^-1 n = {cross}, B^T M^-1 B = {w_t.tolist()}"
+            )
+    rest = model.e == 0 or abs(vn) * model.e < rest_velocity
+    e = 0.0 if rest else model.e
+    lam_n = -(1 + e) * min(vn, 0.0) / delassus
+    lam_t = np.zeros(model.n_t)
+    if model.n_t:
+        vt = tangents.T @ v
+        stick = -vt / w
+        if np.linalg.norm(stick) <= model.mu * lam_n:
+            lam_t = stick
+        else:
+            lam_t = -model.mu * lam_n * vt / np.linalg.norm(vt)
+    x = x.copy()
+    x[n:] = v + minv_n[:, 0] * lam_n + (minv_b @ lam_t if model.n_t else 0.0)
+    if rest:  # exactly on the contact surface's velocity constraint
+        x[n:] -= minv_n[:, 0] * (normal[:, 0] @ x[n:]) / delassus
+    return x, float(lam_n), lam_t, rest
