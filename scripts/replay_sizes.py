@@ -55,15 +55,20 @@ def main() -> None:
         for detail in (None, 0.05, 0.03, 0.02):
             cases.append((f"solo12 {duration:g} s", traj, models, detail, duration))
     for name, traj, models, detail, _ in cases:
-        start = time.perf_counter()
-        page = out / f"{name.replace(' ', '_')}_{detail}.html"
-        result = replay(traj, html=page, robot=models, mesh_detail=detail)
-        rows.append((name, detail, result.n_frames, result.html_bytes,
-                     time.perf_counter() - start))
-    print("| case | mesh_detail | frames (30 fps) | HTML size [MB] | build time [s] |")
-    print("| --- | --- | --- | --- | --- |")
-    for name, detail, frames, size, seconds in rows:
-        print(f"| {name} | {detail} | {frames} | {size / 1e6:.2f} | {seconds:.2f} |")
+        sizes = []
+        for compress in (False, True):
+            start = time.perf_counter()
+            page = out / f"{name.replace(' ', '_')}_{detail}_{compress}.html"
+            result = replay(traj, html=page, robot=models, mesh_detail=detail,
+                            compress=compress)
+            sizes.append(result.html_bytes)
+        rows.append((name, detail, result.n_frames, *sizes, time.perf_counter() - start))
+    print("| case | mesh_detail | frames (30 fps) | HTML [MB] plain | HTML [MB] compressed "
+          "(default) | build time [s] |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for name, detail, frames, plain, packed, seconds in rows:
+        print(f"| {name} | {detail} | {frames} | {plain / 1e6:.2f} | {packed / 1e6:.2f} "
+              f"| {seconds:.2f} |")
 
 
 if __name__ == "__main__":

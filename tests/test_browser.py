@@ -1,11 +1,12 @@
 """Headless browser test of the standalone replay page (Debian's chromium, no downloads).
 
-The page is the standalone HTML of a hand-made hop (tests/viz_hop.py). Chromium opens it
-twice with a URL fragment `#t=<physical time>` that pauses the animation there, and takes
-a screenshot each time. Rendering works headless with `--disable-gpu`: WebGL falls back
-to SwiftShader (software GL); `--enable-unsafe-swiftshader` keeps that fallback allowed
-in Chromium versions that no longer enable it by default. `--virtual-time-budget` lets
-the page run its scripts before the screenshot is taken.
+The page is the standalone HTML of a hand-made hop (tests/viz_hop.py), compressed (the
+default) and plain. Chromium opens it twice with a URL fragment `#t=<physical time>`
+that pauses the animation there, and takes a screenshot each time. Rendering works
+headless with `--disable-gpu`: WebGL falls back to SwiftShader (software GL);
+`--enable-unsafe-swiftshader` keeps that fallback allowed in Chromium versions that no
+longer enable it by default. `--virtual-time-budget` lets the page run its scripts
+(including the asynchronous unpacking of the compressed page) before the screenshot.
 
 The screenshots are kept under `ci-artifacts/browser/` (gitignored) for inspection.
 """
@@ -70,14 +71,16 @@ def contact_mask(image: np.ndarray) -> np.ndarray:
     return (g > 0.35) & (g - r > 0.2) & (g - b > 0.2)
 
 
-def test_standalone_replay_draws_and_moves(tmp_path):
+@pytest.mark.parametrize("compress", [True, False], ids=["compressed", "plain"])
+def test_standalone_replay_draws_and_moves(tmp_path, compress):
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
-    page = ARTIFACTS / "hop.html"
-    replay(hop_trajectory(), html=page, robot=hopper_models())
+    stem = "hop" if compress else "hop_plain"
+    page = ARTIFACTS / f"{stem}.html"
+    replay(hop_trajectory(), html=page, robot=hopper_models(), compress=compress)
     times = (0.2, 0.5)  # flight (foot 0.2 m up) and stance (foot on the ground)
     shots = {}
     for t in times:
-        out = ARTIFACTS / f"hop_t{t:.2f}.png"
+        out = ARTIFACTS / f"{stem}_t{t:.2f}.png"
         out.unlink(missing_ok=True)
         shots[t] = screenshot(page, t, out, tmp_path / f"profile-{t}")
     for t, image in shots.items():

@@ -20,6 +20,7 @@ def cli_replay(args: argparse.Namespace) -> int:
         speed: playback rate [-] (1 = real time; optional, default 1).
         fps: key frames per second (optional, default 30).
         forces: draw contact force arrows (optional, default False).
+        plain_html: write the page's scripts uncompressed (optional, default False).
 
     Without `--html` a live meshcat server is started on 127.0.0.1; the command then
     waits until Ctrl-C and stops the server.
@@ -34,7 +35,8 @@ def cli_replay(args: argparse.Namespace) -> int:
     traj = load_trajectory(args.trajectory)
     options = dict(speed=float(getattr(args, "speed", 1.0) or 1.0),
                    fps=float(getattr(args, "fps", 30.0) or 30.0),
-                   forces=bool(getattr(args, "forces", False)))
+                   forces=bool(getattr(args, "forces", False)),
+                   compress=not bool(getattr(args, "plain_html", False)))
     if args.html:
         result = replay(traj, html=args.html, **options)
         print(f"wrote {result.html} ({result.html_bytes / 1e6:.2f} MB, {result.n_frames} "

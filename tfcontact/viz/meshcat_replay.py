@@ -9,14 +9,18 @@ DESIGN.md 4.1), played at `speed` times real time.
 
 The standalone page needs no server and no network: meshcat's viewer script
 (`main.min.js`) and every scene command are inlined; commands are decoded
-synchronously from base64. It opens at the start of the animation and plays once (the
-"Animations" panel replays it); a URL fragment `#t=0.35` instead shows the motion
+synchronously from base64. By default both scripts are gzipped and base64-encoded in
+the page, and unpacked by the browser (DecompressionStream), which makes the page
+about three times smaller; `compress=False` inlines them as plain text. The page opens
+at the start of the animation and plays it once (the "Animations" panel replays it); a
+URL fragment `#t=0.35` instead shows the motion
 paused at physical time t = 0.35 s (used by the browser test, handy for reports).
 """
 
 from __future__ import annotations
 
 import base64
+import gzip
 import math
 import os
 from dataclasses import dataclass
@@ -46,15 +50,22 @@ class RecordingWindow:
     server process; `Visualizer.static_html()` returns the standalone page. The scene
     tree follows meshcat's own server (`meshcat.servers.zmqserver`): a later
     `set_object` on a path replaces the earlier one, `delete` drops a subtree.
+
+    Args:
+        fragment_time_offset: physical time [s] at animation time 0 (for `#t=`).
+        speed: playback rate [-] of the animation (for `#t=`).
+        compress: gzip + base64 the scripts, unpacked in the browser.
     """
 
-    def __init__(self, *, fragment_time_offset: float = 0.0, speed: float = 1.0):
+    def __init__(self, *, fragment_time_offset: float = 0.0, speed: float = 1.0,
+                 compress: bool = False):
         from meshcat.servers.tree import SceneTree
 
         self._tree_factory = SceneTree
         self.tree = SceneTree()
         self.fragment_time_offset = fragment_time_offset
         self.speed = speed
+        self.compress = compress
 
     def send(self, command) -> None:
         import umsgpack
@@ -108,10 +119,15 @@ class RecordingWindow:
         if "</script" in main_js:
             raise InvalidInput(f"{js_path} contains `</script`: cannot inline it")
         commands = ",\n".join('"' + base64.b64encode(c).decode("ascii") + '"'
-                              for c in self.commands())
-        return _PAGE.format(main_js=main_js, commands=commands,
-                            offset=repr(float(self.fragment_time_offset)),
-                            speed=repr(float(self.speed)))
+                               for c in self.commands())
+        viewer = (_VIEWER.replace("@T0@", repr(float(self.fragment_time_offset)))
+                  .replace("@SPEED@", repr(float(self.speed)))
+                  .replace("@COMMANDS@", commands))
+        if not self.compress:
+            return _HEAD + f"<script>\n{main_js}\n</script>\n<script>{viewer}</script>\n" + _TAIL
+        packed = gzip.compress((main_js + "\n;\n" + viewer).encode("utf-8"), mtime=0)
+        payload = base64.b64encode(packed).decode("ascii")
+        return _HEAD + _UNPACK.replace("@PAYLOAD@", payload) + _TAIL
 
     # meshcat.Visualizer calls these on its window in some paths
     def open(self):
@@ -132,36 +148,41 @@ class _TeeWindow:
             window.send(command)
 
 
-_PAGE = """<!DOCTYPE html>
+_HEAD = """<!DOCTYPE html>
 <html>
 <head><meta charset="utf-8"><title>tfcontact replay</title>
-<style>body {{ margin: 0; }} #meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }}
+<style>body { margin: 0; } #meshcat-pane { width: 100vw; height: 100vh; overflow: hidden; }
 </style></head>
 <body>
 <div id="meshcat-pane"></div>
-<script>
-{main_js}
-</script>
-<script>
+"""
+
+_TAIL = """</body>
+</html>
+"""
+
+# The replay script: meshcat scene commands (msgpack + base64) applied synchronously,
+# then the `#t=` fragment handler. Placeholders: @T0@, @SPEED@, @COMMANDS@.
+_VIEWER = """
 // tfcontact replay: meshcat scene commands, msgpack + base64, applied synchronously.
 var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
-var tfcontactReplay = {{
-  t0: {offset},      // physical time [s] of animation time 0
-  speed: {speed},    // animation seconds per physical second
+var tfcontactReplay = {
+  t0: @T0@,      // physical time [s] of animation time 0
+  speed: @SPEED@,    // animation seconds per physical second
   commands: [
-{commands}
+@COMMANDS@
   ]
-}};
-(function () {{
-  function bytes(text) {{
+};
+(function () {
+  function bytes(text) {
     var raw = atob(text), out = new Uint8Array(raw.length);
     for (var i = 0; i < raw.length; i++) out[i] = raw.charCodeAt(i);
     return out;
-  }}
-  tfcontactReplay.commands.forEach(function (c) {{ viewer.handle_command_bytearray(bytes(c)); }});
+  }
+  tfcontactReplay.commands.forEach(function (c) { viewer.handle_command_bytearray(bytes(c)); });
   tfcontactReplay.commands = null;
   // `#t=<physical time [s]>`: pause the animation at that time.
-  function showFragmentTime() {{
+  function showFragmentTime() {
     var m = /(?:^#|&)t=([-+0-9.eE]+)/.exec(window.location.hash);
     if (!m) return;
     var t = parseFloat(m[1]);
@@ -171,13 +192,29 @@ var tfcontactReplay = {{
     viewer.animator.display_progress(a);
     viewer.set_dirty();
     document.title = "tfcontact replay t=" + t;
-  }}
+  }
   showFragmentTime();
   window.addEventListener("hashchange", showFragmentTime);
-}})();
+  document.body.setAttribute("data-tfcontact-ready", "1");
+})();
+"""
+
+# Compressed page: meshcat's viewer script and the replay script, gzip + base64, unpacked
+# by the browser's DecompressionStream (Chromium 80, Firefox 113, Safari 16.4 and later).
+_UNPACK = """<script id="tfcontact-payload" type="application/octet-stream">@PAYLOAD@</script>
+<script>
+(function () {
+  var raw = atob(document.getElementById("tfcontact-payload").textContent.trim());
+  var data = new Uint8Array(raw.length);
+  for (var i = 0; i < raw.length; i++) data[i] = raw.charCodeAt(i);
+  var stream = new Blob([data]).stream().pipeThrough(new DecompressionStream("gzip"));
+  new Response(stream).text().then(function (code) {
+    var script = document.createElement("script");
+    script.text = code;
+    document.body.appendChild(script);
+  });
+})();
 </script>
-</body>
-</html>
 """
 
 
@@ -397,6 +434,7 @@ def replay(
     contact_tol: float = 1e-3,
     mesh_detail: float | None = 0.03,
     max_frames: int = 3000,
+    compress: bool = True,
     rate_tol: float = FROZEN_RATE_TOL,
 ) -> ReplayResult:
     """Animate a trajectory in meshcat, in physical time.
@@ -418,6 +456,9 @@ def replay(
         mesh_detail: re-mesh mesh files by vertex clustering on cells of this fraction of
             each mesh's bounding-box diagonal [-]; None keeps the files as they are.
         max_frames: key frames at most; `fps` is lowered to fit.
+        compress: gzip the page's scripts (about 3 times smaller; unpacked by the browser's
+            DecompressionStream: Chromium 80, Firefox 113, Safari 16.4 or later); False
+            writes them as plain text, as meshcat's own static page does.
         rate_tol: clock-rate tolerance for dropping frozen pieces (see `physical_time`).
 
     Returns:
@@ -464,7 +505,7 @@ def replay(
     times = np.minimum(t0 + np.arange(n_frames) * speed / fps, t1)
 
     # scene receivers
-    recorder = RecordingWindow(fragment_time_offset=t0, speed=speed)
+    recorder = RecordingWindow(fragment_time_offset=t0, speed=speed, compress=compress)
     live_vis = None
     window: Any = recorder
     if live:
