@@ -40,6 +40,8 @@ def _small(n: int = 6, clock=None, **changes) -> Trajectory:
         tau=tau, clock=tau if clock is None else np.asarray(clock, dtype=float), s=np.ones(n),
         q=np.zeros((n, 2)), v=np.zeros((n, 2)), u=np.zeros((n, 1)), gap=np.ones((n, 1)),
         normal_velocity=np.zeros((n, 1)),
+        robot={"source": "robots/x.urdf", "base": "fixed", "locked_joints": {},
+               "contacts": [{"frame": "foot", "radius": 0.0}]},
     )
     args.update(changes)
     return Trajectory(**args)
@@ -185,6 +187,18 @@ def test_dimensions_must_match_sidecar(saved):
     sidecar.write_text(json.dumps(meta))
     with pytest.raises(TrajectoryFileError, match="differ from the sidecar's dimensions"):
         load_trajectory(npz)
+
+
+def test_sidecar_needs_the_robot(saved, tmp_path):
+    _, sidecar, _ = saved
+    meta = json.loads(sidecar.read_text())
+    del meta["robot"]["base"]
+    sidecar.write_text(json.dumps(meta))
+    with pytest.raises(TrajectoryFileError, match="`robot` must be an object with the keys "
+                       "source, base, locked_joints, contacts"):
+        load_trajectory(sidecar)
+    with pytest.raises(InvalidInput, match=r"`traj.robot` lacks source, base"):
+        save_trajectory(tmp_path / "x", _small(robot={"contacts": [{"frame": "foot"}]}))
 
 
 def test_sidecar_paths():

@@ -87,6 +87,14 @@ ARRAY_DOCS: dict[str, str] = {
 
 _METADATA = ("robot", "scene", "solver", "verification")
 
+#: Keys a saved trajectory's `robot` entry must have: enough to rebuild the robot with
+#: plain Pinocchio (`tfcontact.robot.RobotSpec.to_dict()` gives them).
+ROBOT_KEYS = ("source", "base", "locked_joints", "contacts")
+
+
+def _missing_robot_keys(robot: dict) -> list[str]:
+    return [key for key in ROBOT_KEYS if key not in robot]
+
 
 @dataclass(frozen=True, eq=False)
 class Trajectory:
@@ -381,6 +389,12 @@ def save_trajectory(path: str | os.PathLike, traj: Trajectory, *,
     """
     if not isinstance(traj, Trajectory):
         raise InvalidInput(f"`traj` must be a Trajectory, got {type(traj).__name__}")
+    missing = _missing_robot_keys(traj.robot)
+    if missing:
+        raise InvalidInput(
+            f"`traj.robot` lacks {', '.join(missing)}: a saved trajectory must say how to "
+            f"rebuild its robot ({', '.join(ROBOT_KEYS)}; `RobotSpec.to_dict()` gives them)"
+        )
     npz_path, json_path = sidecar_path(path)
     if not npz_path.parent.is_dir():
         raise InvalidInput(f"`path`: folder {str(npz_path.parent)!r} does not exist")
@@ -456,6 +470,11 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
     for key in ("status", "dimensions", "npz_sha256", *_METADATA):
         if key not in meta:
             raise TrajectoryFileError(f"{str(json_path)!r} lacks the key `{key}`")
+    if not isinstance(meta["robot"], dict) or _missing_robot_keys(meta["robot"]):
+        raise TrajectoryFileError(
+            f"{str(json_path)!r}: `robot` must be an object with the keys "
+            f"{', '.join(ROBOT_KEYS)}"
+        )
     data = npz_path.read_bytes()
     if hashlib.sha256(data).hexdigest() != meta["npz_sha256"]:
         raise TrajectoryFileError(
