@@ -1,0 +1,196 @@
+"""FESD layer: tableaus, discretisation structure, switch detection, convergence order."""
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from tfcontact.errors import InvalidInput, SolveFailed
+from tfcontact.fesd import (
+    Direct,
+    Fesd,
+    FesdGrid,
+    GaussLegendre,
+    HeavisideSystem,
+    RadauIIA,
+    Standard,
+    StewartSystem,
+    Tableau,
+    discretize,
+    simulate,
+)
+from tfcontact.fesd.tableau import collocation_tableau
+from tfcontact.mpcc import Homotopy, Ipopt, L1Penalty, LinfPenalty, Scholtes
+
+# Residual and IPOPT tolerance 1e-13: the switch time and x(T) are then exact to round-off.
+TIGHT = {"homotopy": Homotopy(tolerance=1e-13), "nlp": Ipopt(tol=1e-13)}
+
+# ---------------------------------------------------------------- tableaus
+
+
+@pytest.mark.parametrize("stages", [1, 2, 3, 4])
+@pytest.mark.parametrize("family", [RadauIIA, GaussLegendre])
+def test_tableau_satisfies_the_order_conditions_of_its_stated_order(family, stages):
+    tab = family(stages=stages).tableau()
+    assert tab.order == family(stages=stages).order
+    assert tab.order == (2 * stages - 1 if family is RadauIIA else 2 * stages)
+    # Quadrature conditions B(p): sum_j b_j c_j^(k-1) = 1/k for k <= order, and not beyond.
+    for k in range(1, tab.order + 1):
+        assert tab.b @ tab.c ** (k - 1) == pytest.approx(1 / k, abs=1e-14)
+    assert abs(tab.b @ tab.c**tab.order - 1 / (tab.order + 1)) > 1e-6
+    # Stage conditions C(s): sum_j A_ij c_j^(k-1) = c_i^k / k for k <= s.
+    for k in range(1, stages + 1):
+        np.testing.assert_allclose(tab.A @ tab.c ** (k - 1), tab.c**k / k, atol=1e-14)
+    assert tab.stiffly_accurate is (family is RadauIIA)
+
+
+def test_radau_two_stages_matches_the_textbook_coefficients():
+    # Hairer & Wanner II, Table IV.5.5: c = (1/3, 1), A = [[5/12, -1/12], [3/4, 1/4]].
+    tab = RadauIIA(2).tableau()
+    np.testing.assert_allclose(tab.c, [1 / 3, 1], atol=1e-15)
+    np.testing.assert_allclose(tab.A, [[5 / 12, -1 / 12], [3 / 4, 1 / 4]], atol=1e-15)
+    np.testing.assert_allclose(tab.b, [3 / 4, 1 / 4], atol=1e-15)
+    gauss = GaussLegendre(2).tableau()
+    np.testing.assert_allclose(gauss.c, [0.5 - np.sqrt(3) / 6, 0.5 + np.sqrt(3) / 6], atol=1e-15)
+
+
+def test_tableau_checks_its_consistency():
+    with pytest.raises(InvalidInput, match="row sums of `A` must equal `c`"):
+        Tableau(A=np.eye(2), b=[0.5, 0.5], c=[0.2, 1.0], order=1, name="bad")
+    with pytest.raises(InvalidInput, match=r"weights `b` must sum to 1"):
+        Tableau(A=[[1.0]], b=[0.9], c=[1.0], order=1, name="bad")
+    with pytest.raises(InvalidInput, match=r"`points` must be distinct"):
+        collocation_tableau([0.5, 0.5], order=1, name="bad")
+
+
+@pytest.mark.parametrize("stages", [0, -1, 2.0, True])
+def test_scheme_rejects_bad_stage_counts(stages):
+    with pytest.raises(InvalidInput, match="`stages` must"):
+        RadauIIA(stages=stages)
+
+
+def test_unknown_scheme_is_rejected_with_the_fix():
+    with pytest.raises(InvalidInput, match=r"unknown `scheme` 'radau'.*RadauIIA\(stages=s\)"):
+        discretize(sign_system(), grid=FesdGrid(1, 2, 1.0), scheme="radau")
+
+
+# ---------------------------------------------------------------- x' = 2 - sign(x)
+
+
+def sign_system() -> StewartSystem:
+    """x' = 2 - sign(x): region 1 (x > 0) x' = 1, region 2 (x < 0) x' = 3."""
+    x = ca.SX.sym("x")
+    return StewartSystem.from_sign_matrix(x, ca.SX(0, 1), ca.horzcat(1, 3), x,
+                                          np.array([[1], [-1]]))
+
+
+def sign_system_heaviside() -> HeavisideSystem:
+    """The same system with alpha in H(x): x' = alpha * 1 + (1 - alpha) * 3."""
+    x, alpha = ca.SX.sym("x"), ca.SX.sym("alpha")
+    return HeavisideSystem(x=x, u=ca.SX(0, 1), alpha=alpha, rhs=3 - 2 * alpha, switching=x)
+
+
+def test_discretization_has_the_stated_structure():
+    s, n_fe, N = 2, 3, 4
+    disc = discretize(sign_system(), grid=FesdGrid(N, n_fe, 2.0), scheme=RadauIIA(s))
+    E = N * n_fe
+    mpcc = disc.mpcc
+    assert disc.layout.x.shape == (E + 1, 1)
+    assert disc.layout.x_stages.shape == (E, s, 1)
+    assert disc.layout.z["theta"].shape == (E, s, 2)
+    assert mpcc.blocks["h"].size == E
+    # stage-mode cross complementarity: s * n_f pairs per element
+    assert mpcc.n_comp == E * s * 2
+    np.testing.assert_allclose(mpcc.lbw[mpcc.blocks["h"]], 0.0)
+    np.testing.assert_allclose(mpcc.ubw[mpcc.blocks["h"]], 2 * 2.0 / E)
+    assert np.all(mpcc.lbw[mpcc.blocks["theta"]] == 0)
+    assert mpcc.p.numel() == 1  # x0
+    # Radau's end point is its last stage: no separate boundary variables
+    assert "lambda_end" not in mpcc.blocks
+    gauss = discretize(sign_system(), grid=FesdGrid(N, n_fe, 2.0), scheme=GaussLegendre(s))
+    assert gauss.mpcc.blocks["lambda_end"].size == E * 2
+    standard = discretize(sign_system(), grid=FesdGrid(N, n_fe, 2.0), method=Standard())
+    assert "h" not in standard.mpcc.blocks
+    assert standard.mpcc.n_comp == E * s * 2
+    element = discretize(sign_system(), grid=FesdGrid(N, n_fe, 2.0),
+                         method=Fesd(cross_complementarity="element"))
+    assert element.mpcc.n_comp == E * 2
+
+
+@pytest.mark.parametrize("system", [sign_system, sign_system_heaviside],
+                         ids=["stewart", "heaviside"])
+@pytest.mark.parametrize("scheme", [RadauIIA(1), RadauIIA(2), GaussLegendre(2)],
+                         ids=["radau1", "radau2", "gauss2"])
+@pytest.mark.parametrize("n_steps", [2, 5])
+def test_fesd_detects_the_switch_exactly(system, scheme, n_steps):
+    # x(0) = -1: x' = 3 until x = 0 at t = 1/3, then x' = 1, so x(T) = T - 1/3.
+    # With T = 1 and 2 or 5 steps of 2 elements, 1/3 is on no nominal grid point.
+    T = 1.0
+    result = simulate(system(), [-1.0], horizon=T, n_steps=n_steps, scheme=scheme, **TIGHT)
+    assert result.success
+    assert result.switch_times.size == 1
+    assert abs(result.switch_times[0] - 1 / 3) <= 1e-9
+    assert abs(result.x[-1, 0] - (T - 1 / 3)) <= 1e-12
+    assert result.t[-1] == pytest.approx(T, abs=1e-14)
+    # the boundary at the switch carries x = 0
+    k = int(np.argmin(np.abs(result.t - 1 / 3)))
+    assert abs(result.x[k, 0]) <= 1e-12
+
+
+def test_standard_discretization_misses_the_switch():
+    T = 1.0
+    result = simulate(sign_system(), [-1.0], horizon=T, n_steps=2, method=Standard())
+    assert result.success
+    np.testing.assert_allclose(result.h, T / 4)
+    assert abs(result.x[-1, 0] - (T - 1 / 3)) > 1e-2
+
+
+def test_simulation_with_controls_and_bad_inputs():
+    x, u = ca.SX.sym("x"), ca.SX.sym("u")
+    sys = StewartSystem.from_sign_matrix(x, u, ca.horzcat(u - 1, u + 1), x,
+                                         np.array([[1], [-1]]))
+    with pytest.raises(InvalidInput, match="pass `u`"):
+        simulate(sys, [-1.0], horizon=1.0, n_steps=2)
+    with pytest.raises(InvalidInput, match=r"`u` must have shape \(1,\) or \(n_steps, n_u\)"):
+        simulate(sys, [-1.0], horizon=1.0, n_steps=2, u=np.ones((3, 1)))
+    with pytest.raises(InvalidInput, match=r"`x0` has 2 entries, expected n_x = 1"):
+        simulate(sys, [-1.0, 0.0], horizon=1.0, n_steps=2, u=2.0)
+    with pytest.raises(InvalidInput, match=r"`n_steps` must be a positive integer, got 0"):
+        simulate(sys, [-1.0], horizon=1.0, n_steps=0, u=2.0)
+    with pytest.raises(InvalidInput, match=r"`n_finite_elements` must be a positive integer"):
+        simulate(sys, [-1.0], horizon=1.0, n_steps=2, u=2.0, n_finite_elements=-2)
+    with pytest.raises(InvalidInput, match=r"`horizon` must be a positive number"):
+        simulate(sys, [-1.0], horizon=-1.0, n_steps=2, u=2.0)
+    # u = 2: x' = 3 for x < 0, then 1: the same switch at t = 1/3; u per step works too.
+    result = simulate(sys, [-1.0], horizon=1.0, n_steps=3, u=[[2.0], [2.0], [2.0]], **TIGHT)
+    assert abs(result.switch_times[0] - 1 / 3) <= 1e-9
+    assert abs(result.x[-1, 0] - 2 / 3) <= 1e-12
+
+
+@pytest.mark.parametrize("relaxation", [Scholtes(), L1Penalty(), LinfPenalty()])
+def test_every_relaxation_simulates_the_switch(relaxation):
+    result = simulate(sign_system(), [-1.0], horizon=1.0, n_steps=3, relaxation=relaxation)
+    assert result.success
+    assert result.residual <= 1e-9
+    assert abs(result.switch_times[0] - 1 / 3) <= 1e-9
+
+
+def test_direct_step_equilibration_gives_equal_steps_away_from_the_switch():
+    result = simulate(sign_system(), [-1.0], horizon=1.0, n_steps=3, n_finite_elements=3,
+                      method=Fesd(step_equilibration=Direct()), relaxation=LinfPenalty())
+    assert result.success
+    assert abs(result.switch_times[0] - 1 / 3) <= 1e-9
+    h = result.h.reshape(3, 3)
+    # steps 1 and 3 hold no switch: their elements are equal
+    np.testing.assert_allclose(h[0], 1 / 9, atol=1e-8)
+    np.testing.assert_allclose(h[2], 1 / 9, atol=1e-8)
+
+
+def test_a_failed_step_is_reported_or_raised():
+    # One NLP with sigma = 1 cannot reach the residual tolerance: the step fails.
+    with pytest.raises(SolveFailed, match="step 1 of 2 failed"):
+        simulate(sign_system(), [-1.0], horizon=1.0, n_steps=2,
+                 homotopy=Homotopy(max_nlps=1))
+    result = simulate(sign_system(), [-1.0], horizon=1.0, n_steps=2,
+                      homotopy=Homotopy(max_nlps=1), throw=False)
+    assert not result.success
+    assert result.t.size == 1 and result.n_steps == 1
