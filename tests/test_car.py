@@ -162,3 +162,17 @@ def test_milp_with_sampled_guards_is_not_an_automaton_trajectory():
     assert res.final_time < ref.final_time
     sim = simulate_car(res.best.controls, res.times)
     assert sim.terminal_error > 1.0
+
+
+@pytest.mark.parametrize(("w", "mode"), [(0.0, NOMINAL), (1.0, TURBO)])
+def test_time_freezing_sliding_modes_are_the_car_modes(w, mode):
+    from tfcontact.scenes.car import time_freezing_system
+
+    p = CarProblem()
+    modes = time_freezing_system(p).function()
+    v, u = 12.0, 2.5  # inside the band: both modes possible, the memory decides
+    F = np.asarray(modes([3.0, v, 0.0, w, 1.0], [u]))
+    pair = (0, 1) if mode == NOMINAL else (2, 3)
+    sliding = 0.5 * (F[:, pair[0]] + F[:, pair[1]])
+    expected = [v, p.acceleration(mode, u), p.fuel_rate(mode), 0.0, 1.0]
+    np.testing.assert_allclose(sliding, expected, atol=1e-14)

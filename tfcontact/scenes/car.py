@@ -23,10 +23,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 from scipy.integrate import solve_ivp
 
 from tfcontact.errors import InvalidInput
+from tfcontact.timefreezing.hysteresis import hysteresis_system
+from tfcontact.timefreezing.system import TimeFreezingSystem
 
 NOMINAL = 0
 TURBO = 1
@@ -102,6 +105,31 @@ class CarProblem:
 
 TF13 = CarProblem()
 """The data of PROBLEMS.md TF-13 (the defaults)."""
+
+
+def time_freezing_system(problem: CarProblem = TF13) -> TimeFreezingSystem:
+    """The car as a time-freezing hysteresis system (DESIGN.md 4.5).
+
+    y = (q, v, L, w, t), u = (u,): nominal f_A = (v, u, P_n), turbo f_B = (v, k u, P_t),
+    relay signal v with thresholds (v_1, v_2), push gain a = `problem.push_gain`.
+    Built by `tfcontact.timefreezing.hysteresis_system`; add the speed of time with
+    `tfcontact.timefreezing.system.with_speed_of_time`.
+    """
+    x = ca.SX.sym("x", 3)
+    u = ca.SX.sym("u")
+    f_a = ca.vertcat(x[1], u, problem.fuel_rate_nominal)
+    f_b = ca.vertcat(x[1], problem.turbo_gain * u, problem.fuel_rate_turbo)
+    return hysteresis_system(
+        x,
+        u,
+        f_a,
+        f_b,
+        x[1],
+        (problem.v_turbo_off, problem.v_turbo_on),
+        push_gain=problem.push_gain,
+        state_names=("q", "v", "L"),
+        control_names=("u",),
+    )
 
 
 @dataclass(frozen=True)

@@ -18,9 +18,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 
 from tfcontact.errors import InvalidInput
+from tfcontact.timefreezing.hysteresis import hysteresis_system
+from tfcontact.timefreezing.system import TimeFreezingSystem
 
 HEATING = 0
 OFF = 1
@@ -86,6 +89,25 @@ class ThermostatProblem:
 
 TF14 = ThermostatProblem()
 """The data of PROBLEMS.md TF-14 (the defaults)."""
+
+
+def time_freezing_system(problem: ThermostatProblem = TF14) -> TimeFreezingSystem:
+    """The thermostat as a time-freezing hysteresis system (DESIGN.md 4.5).
+
+    y = (y, w, t), no control: mode A (w = 0, heating) y' = -lambda y + p_heat,
+    mode B (w = 1, off) y' = -lambda y; the relay watches y with thresholds (y_1, y_2).
+    """
+    y = ca.SX.sym("y")
+    return hysteresis_system(
+        y,
+        ca.SX(0, 1),
+        -problem.decay * y + problem.heat,
+        -problem.decay * y,
+        y,
+        (problem.y_on, problem.y_off),
+        push_gain=problem.push_gain,
+        state_names=("y",),
+    )
 
 
 def switching_times(
