@@ -140,6 +140,20 @@ def switching_times(
     return np.array(times), np.array(modes, dtype=int)
 
 
+def temperature(problem: ThermostatProblem, t: float | np.ndarray) -> np.ndarray:
+    """The exact relay trajectory y(t) [deg C] at physical times t >= 0 (closed form)."""
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    times, modes = switching_times(problem, t_end=float(t.max()))
+    starts = np.concatenate([[0.0], times])
+    start_modes = np.concatenate([[HEATING], modes])
+    start_values = np.array(
+        [problem.y0] + [problem.y_off if m == OFF else problem.y_on for m in modes]
+    )
+    k = np.searchsorted(starts, t, side="right") - 1
+    steady = np.where(start_modes[k] == HEATING, problem.heat / problem.decay, 0.0)
+    return steady + (start_values[k] - steady) * np.exp(-problem.decay * (t - starts[k]))
+
+
 def numerical_switch_intervals(
     problem: ThermostatProblem = TF14, tau_end: float | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
