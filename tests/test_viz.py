@@ -40,8 +40,8 @@ def _small(n: int = 6, clock=None, **changes) -> Trajectory:
         tau=tau, clock=tau if clock is None else np.asarray(clock, dtype=float), s=np.ones(n),
         q=np.zeros((n, 2)), v=np.zeros((n, 2)), u=np.zeros((n, 1)), gap=np.ones((n, 1)),
         normal_velocity=np.zeros((n, 1)),
-        robot={"source": "robots/x.urdf", "base": "fixed", "locked_joints": {},
-               "contacts": [{"frame": "foot", "radius": 0.0}]},
+        robot={"source": "robots/x.urdf", "base": "fixed", "locked_joints": [],
+               "contacts": [{"frame": "foot", "radius": 0.02}]},
     )
     args.update(changes)
     return Trajectory(**args)

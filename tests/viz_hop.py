@@ -90,7 +90,7 @@ def hop_trajectory(*, n_flight: int = 41, n_frozen: int = 6) -> Trajectory:
         tau=tau, clock=clock, s=s, q=q, v=v, u=u, gap=gap, normal_velocity=normal_velocity,
         force=force, impulse=impulse, status="success",
         robot={"source": "tests/data/viz_hopper.urdf", "base": "fixed",
-               "locked_joints": {}, "contacts": CONTACTS},
+               "locked_joints": [], "contacts": CONTACTS},
         scene={"terrain": {"type": "flat", "height": 0.0}},
         solver={"nlp_count": 3, "iterations": 42, "complementarity_residual": 1e-9,
                 "history": [{"sigma": 1e-1, "residual": 3e-2, "iterations": 20},
