@@ -316,9 +316,7 @@ class Discretization:
 
     def switch_times(self, w: np.ndarray, threshold: float = 1e-5) -> np.ndarray:
         """Times of element boundaries where the active set changes [s]."""
-        active = self.active_sets(w, threshold)
-        changed = np.any(active[1:] != active[:-1], axis=1)
-        return self.times(w)[1:-1][changed]
+        return switch_times(self.times(w), self.active_sets(w, threshold), self.grid.h0)
 
     def initial_guess(self, x0: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """w0 with every state x0, algebraic variables consistent with x0, steps h0.
@@ -365,6 +363,20 @@ class Discretization:
                 f"`u` must have shape ({n_u},) or ({n}, {n_u}), got {u.shape}"
             ) from None
         return np.concatenate([x0, u.reshape(-1)])
+
+
+def switch_times(t: np.ndarray, active: np.ndarray, h0: float) -> np.ndarray:
+    """Times where the active set changes between consecutive elements [s].
+
+    Args:
+        t: (E + 1,) element boundary times; active: (E, m) active components per element;
+        h0: nominal step, elements shorter than 1e-9 h0 (collapsed, gamma_h = 1) are skipped.
+    """
+    keep = np.flatnonzero(np.diff(t) > 1e-9 * h0)
+    if keep.size < 2:
+        return np.zeros(0)
+    changed = np.any(active[keep[1:]] != active[keep[:-1]], axis=1)
+    return t[keep[1:]][changed]
 
 
 def discretize(

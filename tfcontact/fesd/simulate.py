@@ -23,6 +23,7 @@ from tfcontact.fesd.discretization import (
     FesdGrid,
     Method,
     discretize,
+    switch_times,
 )
 from tfcontact.fesd.system import HeavisideSystem, StewartSystem
 from tfcontact.fesd.tableau import Scheme, Tableau
@@ -201,8 +202,6 @@ def simulate(
                  for name in (alg[0] if alg else {})}
     t = np.concatenate(ts)
     theta = _theta(disc, algebraic) if alg else np.zeros((0, s, disc.form.m))
-    active = theta.max(axis=1) > 1e-5
-    changed = np.any(active[1:] != active[:-1], axis=1) if len(active) else np.zeros(0, bool)
     message = status.value
     if status is SimulationStatus.STEP_FAILED:
         message = f"step {n_done + 1} of {n_steps} failed: {results[-1].message}"
@@ -211,7 +210,7 @@ def simulate(
         t_stages=np.concatenate(tst) if tst else np.zeros((0, s)),
         x_stages=np.concatenate(xst) if xst else np.zeros((0, s, system.n_x)),
         algebraic=algebraic, u=controls[:n_done], h=np.concatenate(hs) if hs else np.zeros(0),
-        switch_times=t[1:-1][changed] if len(t) > 2 else np.zeros(0),
+        switch_times=switch_times(t, theta.max(axis=1) > 1e-5, grid.h0),
         n_nlps=sum(r.n_nlps for r in results),
         total_iterations=sum(r.total_iterations for r in results),
         residual=max((r.residual for r in results), default=0.0),
