@@ -189,8 +189,89 @@ def test_a_failed_step_is_reported_or_raised():
     # One NLP with sigma = 1 cannot reach the residual tolerance: the step fails.
     with pytest.raises(SolveFailed, match="step 1 of 2 failed"):
         simulate(sign_system(), [-1.0], horizon=1.0, n_steps=2,
-                 homotopy=Homotopy(max_nlps=1))
+                 homotopy=Homotopy(max_nlps=1), retry=False)
     result = simulate(sign_system(), [-1.0], horizon=1.0, n_steps=2,
-                      homotopy=Homotopy(max_nlps=1), throw=False)
+                      homotopy=Homotopy(max_nlps=1), retry=False, throw=False)
     assert not result.success
     assert result.t.size == 1 and result.n_steps == 1
+
+
+# ---------------------------------------------------------------- convergence order
+
+
+def circle_system() -> StewartSystem:
+    """[FESD] section 4.4: x' = A1 x for |x|^2 < 1, A2 x for |x|^2 > 1, w = 2 pi."""
+    x = ca.SX.sym("x", 2)
+    w = 2 * np.pi
+    a1 = ca.DM([[1, w], [-w, 1]])
+    a2 = ca.DM([[1, -w], [w, 1]])
+    return StewartSystem.from_sign_matrix(x, ca.SX(0, 1), ca.horzcat(a1 @ x, a2 @ x),
+                                          ca.sumsqr(x) - 1, np.array([[-1], [1]]))
+
+
+CIRCLE_X0 = np.array([np.exp(-1), 0.0])
+CIRCLE_T = np.pi / 2
+
+
+def circle_reference(t: float) -> np.ndarray:
+    """Closed form: in polar coordinates r' = r in both regions, phi' = -w inside, +w outside.
+
+    From r(0) = 1/e, phi(0) = 0: r = e^(t - 1), so the switch is at t_s = 1 with
+    phi(1) = -2 pi, x(1) = (1, 0); afterwards x(t) = e^(t - 1) (cos w(t - 1), sin w(t - 1)).
+    """
+    w = 2 * np.pi
+    if t <= 1:
+        return np.exp(t - 1) * np.array([np.cos(w * t), -np.sin(w * t)])
+    return np.exp(t - 1) * np.array([np.cos(w * (t - 1)), np.sin(w * (t - 1))])
+
+
+def global_errors(stages, n_steps_list, method):
+    errors, steps = [], []
+    for n in n_steps_list:
+        result = simulate(circle_system(), CIRCLE_X0, horizon=CIRCLE_T, n_steps=n,
+                          scheme=RadauIIA(stages), n_finite_elements=2, method=method,
+                          relaxation=L1Penalty(), homotopy=Homotopy(tolerance=1e-12),
+                          nlp=Ipopt(tol=1e-12))
+        errors.append(np.linalg.norm(result.x[-1] - circle_reference(CIRCLE_T)))
+        steps.append(CIRCLE_T / (2 * n))
+    return np.array(steps), np.array(errors)
+
+
+def fitted_order(steps, errors) -> float:
+    return float(np.polyfit(np.log(steps), np.log(errors), 1)[0])
+
+
+def test_circle_reference_solves_the_ode():
+    w = 2 * np.pi
+    a1 = np.array([[1, w], [-w, 1]])
+    a2 = np.array([[1, -w], [w, 1]])
+    np.testing.assert_allclose(circle_reference(0.0), CIRCLE_X0, atol=1e-15)
+    for t, a in ((0.4, a1), (1.3, a2)):
+        fd = (circle_reference(t + 1e-6) - circle_reference(t - 1e-6)) / 2e-6
+        np.testing.assert_allclose(fd, a @ circle_reference(t), rtol=1e-8)
+    np.testing.assert_allclose(circle_reference(1 - 1e-12), circle_reference(1 + 1e-12),
+                               atol=1e-10)
+
+
+@pytest.mark.parametrize(("stages", "n_steps"), [(2, (10, 20, 40, 100)),
+                                                 (3, (5, 10, 20, 50))])
+def test_fesd_recovers_the_order_of_radau_iia_across_the_switch(stages, n_steps):
+    steps, errors = global_errors(stages, n_steps, Fesd())
+    assert steps[0] / steps[-1] >= 10
+    assert abs(fitted_order(steps, errors) - (2 * stages - 1)) <= 0.3
+
+
+@pytest.mark.slow
+def test_fesd_implicit_euler_is_first_order():
+    # Radau IIA s = 1 damps the rotation by O(w^2 h): asymptotic only for h < 5e-3.
+    steps, errors = global_errors(1, (160, 500, 1600), Fesd())
+    assert abs(fitted_order(steps, errors) - 1) <= 0.3
+
+
+def test_standard_discretization_is_first_order_across_the_switch():
+    # Its error jumps with where the switch falls in an element; over a decade of h it
+    # decreases at most linearly (measured: slope ~0.6).
+    steps, errors = global_errors(3, (20, 60, 200), Standard())
+    assert fitted_order(steps, errors) < 1.5
+    _, fesd_errors = global_errors(3, (100,), Fesd())
+    assert fesd_errors[0] < 1e-3 * errors[-1]

@@ -3,7 +3,9 @@
 Every step [t_k, t_k + T / n_steps] is one control interval of N_FE finite elements.
 Its MPCC is built once with the step's initial state and control as parameters, its
 relaxed NLP is built once (`MpccSolver`), and every step is a homotopy warm started
-from the previous step's solution. With FESD the switches land on element boundaries,
+from the previous step's solution (states shifted to the step's initial state); a step
+whose homotopy fails from there is retried once from the initial state with consistent
+algebraic variables and the Scholtes relaxation. With FESD the switches land on element boundaries,
 so the simulator reports them exactly (Nurkanovic et al., Numer. Math. 2024, section 4).
 """
 
@@ -59,7 +61,9 @@ class SimulationResult:
         n_nlps, total_iterations: NLPs solved and IPOPT iterations over all steps.
         residual: the largest complementarity residual over the steps.
         build_time: seconds to discretise and build the NLP [s]; solve_time: all steps [s].
-        step_results: the `MpccResult` of every step solved.
+        step_results: the `MpccResult` of every step solved (the retry's, if retried).
+        n_retries: steps whose warm-started homotopy failed and were solved again from the
+            consistent guess at x_k (their NLPs count in `n_nlps`).
         discretization: the one-step discretisation.
     """
 
@@ -80,6 +84,7 @@ class SimulationResult:
     solve_time: float
     step_results: tuple[MpccResult, ...]
     discretization: Discretization
+    n_retries: int = 0
 
     @property
     def success(self) -> bool:
@@ -120,6 +125,7 @@ def simulate(
     homotopy: Homotopy | None = None,
     relaxation: Relaxation | None = None,
     nlp: Ipopt | None = None,
+    retry: bool = True,
     verbose: bool = False,
     throw: bool = True,
 ) -> SimulationResult:
@@ -140,6 +146,8 @@ def simulate(
             residual <= 1e-9).
         relaxation: `Scholtes()` (default), `L1Penalty()` or `LinfPenalty()`.
         nlp: IPOPT settings.
+        retry: retry a failed step once from the consistent guess at x_k with the
+            Scholtes relaxation (counted in `n_retries`, its NLPs in `n_nlps`).
         verbose: print one line per NLP (from the MPCC layer) and one per step.
         throw: raise `SolveFailed` (result attached, up to the failed step) if a step fails.
 
@@ -172,6 +180,8 @@ def simulate(
     s = disc.tableau.stages
     xs, ts, xst, tst, hs, alg = [x0[None, :]], [np.zeros(1)], [], [], [], []
     results: list[MpccResult] = []
+    retries: list[tuple[int, MpccResult]] = []
+    fallback: MpccSolver | None = None
     w = disc.initial_guess(x0)
     x = x0
     t0 = 0.0
@@ -179,8 +189,25 @@ def simulate(
     solve_start = time.perf_counter()
     for k in range(n_steps):
         p = disc.parameters(x, controls[k])
+        if k > 0:
+            # warm start: the previous step's solution, states shifted to start at x_k
+            shift = x - w[disc.layout.x[0]]
+            w = w.copy()
+            w[disc.layout.x] += shift
+            w[disc.layout.x_stages] += shift
         w[disc.layout.x[0]] = x
         result = solver.solve(p, w, homotopy=homotopy, verbose=verbose)
+        if not result.success and retry:
+            # Retry from x_k everywhere (algebraic variables consistent with x_k) with the
+            # Scholtes relaxation: penalty relaxations can stop at a spurious stationary point
+            # of the penalty when a switch needs the mode to change inside the step.
+            first = result
+            if fallback is None:
+                fallback = (solver if isinstance(solver.relaxation, Scholtes)
+                            else MpccSolver(disc.mpcc, relaxation=Scholtes(), nlp=nlp))
+            result = fallback.solve(p, disc.initial_guess(x), homotopy=homotopy,
+                                    verbose=verbose)
+            retries.append((k, first))
         results.append(result)
         if verbose:
             print(f"step {k + 1}/{n_steps}: {result.message}", flush=True)
@@ -211,11 +238,12 @@ def simulate(
         x_stages=np.concatenate(xst) if xst else np.zeros((0, s, system.n_x)),
         algebraic=algebraic, u=controls[:n_done], h=np.concatenate(hs) if hs else np.zeros(0),
         switch_times=switch_times(t, theta.max(axis=1) > 1e-5, grid.h0),
-        n_nlps=sum(r.n_nlps for r in results),
-        total_iterations=sum(r.total_iterations for r in results),
+        n_nlps=sum(r.n_nlps for r in results) + sum(r.n_nlps for _, r in retries),
+        total_iterations=(sum(r.total_iterations for r in results)
+                          + sum(r.total_iterations for _, r in retries)),
         residual=max((r.residual for r in results), default=0.0),
         build_time=build_time, solve_time=solve_time, step_results=tuple(results),
-        discretization=disc,
+        discretization=disc, n_retries=len(retries),
     )
     if throw and not out.success:
         raise SolveFailed(message, out)
