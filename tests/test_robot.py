@@ -61,7 +61,8 @@ class Evaluated:
         twin = robot.twin
         nv = robot.nv
         self.frames = _checked_frames(robot.model)
-        outs = [ca.vec(twin.M), twin.h, twin.forward_dynamics()]
+        outs = [ca.vec(twin.M), twin.h, twin.forward_dynamics(method="ldl"),
+                twin.forward_dynamics(method="qr")]
         for name in self.frames:
             outs += [twin.frame_position(name), ca.vec(twin.frame_rotation(name)),
                      ca.vec(twin.frame_jacobian(name)), twin.frame_drift(name)]
@@ -74,9 +75,10 @@ class Evaluated:
         self.M = [res[0][:, i].reshape(nv, nv, order="F") for i in range(N_SAMPLES)]
         self.h = res[1].T
         self.a = res[2].T
+        self.a_qr = res[3].T
         self.frame = {}
         for k, name in enumerate(self.frames):
-            p, R, J, d = res[3 + 4 * k: 7 + 4 * k]
+            p, R, J, d = res[4 + 4 * k: 8 + 4 * k]
             self.frame[name] = [
                 (p[:, i], R[:, i].reshape(3, 3, order="F"), J[:, i].reshape(6, nv, order="F"),
                  d[:, i])
@@ -111,7 +113,9 @@ def test_twin_dynamics_match_pinocchio(case):
         M = np.triu(M) + np.triu(M, 1).T
         assert_close(ev.M[i], M, f"{name} M sample {i}")
         assert_close(ev.h[i], pin.nonLinearEffects(model, data, q, v), f"{name} h sample {i}")
-        assert_close(ev.a[i], pin.aba(model, data, q, v, tau), f"{name} fd sample {i}")
+        a = pin.aba(model, data, q, v, tau)
+        assert_close(ev.a[i], a, f"{name} fd (ldl) sample {i}")
+        assert_close(ev.a_qr[i], a, f"{name} fd (qr) sample {i}")
 
 
 def test_twin_frames_match_pinocchio(case):

@@ -145,7 +145,8 @@ class RobotTwin:
             the diagonal), equal to `pin.crba`.
         h (nv, in q, v): bias forces, h = C(q, v) v + g(q), equal to
             `pin.nonLinearEffects` (RNEA with zero acceleration).
-        forward_dynamics(tau): a = M^-1 (tau - h) by `casadi.solve` (no inverse).
+        forward_dynamics(tau): a = M^-1 (tau - h), solved with M (sparse LDL^T or QR,
+            never an explicit inverse).
 
     Per frame (`frame_position`, `frame_rotation`, `frame_jacobian`, `frame_drift`):
     placement p(q) [m], R(q); LOCAL_WORLD_ALIGNED Jacobian J(q) (6 x nv, linear
@@ -253,7 +254,7 @@ class RobotTwin:
             ck = composite[k]
             if pk >= 0 and ck is not None:
                 composite[pk] = ck if composite[pk] is None else composite[pk] + ck
-        M = ca.SX.zeros(self.nv, self.nv)
+        M = ca.SX(self.nv, self.nv)  # structurally sparse: zero where joints do not share a path
         for k in range(nel):
             if composite[k] is None:
                 continue
@@ -325,7 +326,7 @@ class RobotTwin:
         """
         f = self._frame(name)
         pf = self.frame_position(name)
-        J = ca.SX.zeros(6, self.nv)
+        J = ca.SX(6, self.nv)  # structural zeros off the support of the frame
         for k in self._support(f.parentJoint):
             lin, ang = self._S[k]
             J[0:3, self._idx[k]] = lin + _cross(ang, pf)
@@ -350,19 +351,33 @@ class RobotTwin:
         return ca.vertcat(al + _cross(aa, pf) + _cross(w, vp), aa)
 
     # --------------------------------------------------------------- dynamics
-    def forward_dynamics(self, tau: ca.SX | None = None) -> ca.SX:
-        """a = M(q)^-1 (tau - h(q, v)) [m/s^2, rad/s^2] by `casadi.solve`.
+    def forward_dynamics(self, tau: ca.SX | None = None, *, method: str = "ldl") -> ca.SX:
+        """a = M(q)^-1 (tau - h(q, v)) [m/s^2, rad/s^2], solved with M (no inverse).
 
         Args:
             tau: generalised forces, an nv-column; default the symbol `self.tau`.
+            method: ``"ldl"`` (default): sparse symbolic LDL^T of M (`casadi.ldl`,
+                fill-reducing ordering, no pivoting, valid since M is symmetric positive
+                definite), which exploits the zeros between branches of the kinematic
+                tree; ``"qr"``: `casadi.solve` (symbolic QR), about 2.5x more operations
+                on solo12.
+
+        Raises:
+            InvalidInput: an unknown `method`.
         """
         tau = self.tau if tau is None else tau
-        return ca.solve(self.M, tau - self.h)
+        if method == "ldl":
+            D, LT, p = ca.ldl(self.M)
+            return ca.ldl_solve(tau - self.h, D, LT, p)
+        if method == "qr":
+            return ca.solve(self.M, tau - self.h)
+        raise InvalidInput(f"`method` must be 'ldl' or 'qr', got {method!r}")
 
     def function(self, kind: str) -> ca.Function:
         """A cached `casadi.Function` of the main expressions.
 
-        `kind` is ``"M"`` (q -> M), ``"h"`` (q, v -> h) or ``"fd"`` (q, v, tau -> a).
+        `kind` is ``"M"`` (q -> M), ``"h"`` (q, v -> h), ``"fd"`` (q, v, tau -> a, sparse
+        LDL^T) or ``"fd_qr"`` (the same by `casadi.solve`).
         """
         if kind not in self._functions:
             q, v, tau = self.q, self.v, self.tau
@@ -371,10 +386,11 @@ class RobotTwin:
                 f = ca.Function("M", [q], [self.M], ["q"], ["M"], opts)
             elif kind == "h":
                 f = ca.Function("h", [q, v], [self.h], ["q", "v"], ["h"], opts)
-            elif kind == "fd":
-                f = ca.Function("fd", [q, v, tau], [self.forward_dynamics()],
+            elif kind in ("fd", "fd_qr"):
+                method = "ldl" if kind == "fd" else "qr"
+                f = ca.Function(kind, [q, v, tau], [self.forward_dynamics(method=method)],
                                 ["q", "v", "tau"], ["a"], opts)
             else:
-                raise InvalidInput(f"`kind` must be 'M', 'h' or 'fd', got {kind!r}")
+                raise InvalidInput(f"`kind` must be 'M', 'h', 'fd' or 'fd_qr', got {kind!r}")
             self._functions[kind] = f
         return self._functions[kind]
