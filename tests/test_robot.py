@@ -17,7 +17,7 @@ import pinocchio as pin
 import pytest
 
 from tfcontact.errors import FrameNotFound, IncompatibleOptions, InvalidInput, RobotLoadError
-from tfcontact.robot import ContactSpec, Ground, Robot, RobotSpec, load_robot
+from tfcontact.robot import ContactSpec, Ground, Robot, RobotSpec, load_robot, project_robots
 
 TOL = 1e-9
 N_SAMPLES = 20
@@ -332,6 +332,13 @@ def test_relative_path_resolves_against_repository_root(tmp_path, monkeypatch):
     assert load_robot("robots/ball.urdf").nv == 0
 
 
+def test_project_robots_load_by_name():
+    assert project_robots() == ("ball", "hopper", "monoped")
+    robot = load_robot("monoped", base="planar_xz")
+    assert robot.joint_names == ("root_joint", "hip_joint", "knee_joint")
+    assert "foot" in robot.frame_names
+
+
 # ------------------------------------------------------------------ bad input
 def test_missing_urdf(tmp_path):
     with pytest.raises(RobotLoadError, match=r"URDF file `robots/nope.urdf` not found.*pass an"):
@@ -355,7 +362,8 @@ def test_malformed_urdf(tmp_path):
 
 
 def test_unknown_robot_name():
-    with pytest.raises(RobotLoadError, match=r"`solo13` is neither a URDF path nor.*solo12"):
+    with pytest.raises(RobotLoadError, match=r"`solo13` is neither a URDF path, a robot of the "
+                       r"project's `robots/` \(ball, hopper, monoped\) nor.*solo12"):
         load_robot("solo13")
 
 

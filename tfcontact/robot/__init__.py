@@ -4,7 +4,7 @@ Entry point: `load_robot(source, *, base, locked_joints, contacts) -> Robot`.
 """
 
 from tfcontact.robot.contact import ContactTerms, Ground, contact_terms
-from tfcontact.robot.loading import REPO_ROOT, Robot, load_robot
+from tfcontact.robot.loading import REPO_ROOT, Robot, load_robot, project_robots
 from tfcontact.robot.spec import BASES, PLANAR_BASES, ContactSpec, RobotSpec
 from tfcontact.robot.twin import RobotTwin
 
@@ -20,4 +20,5 @@ __all__ = [
     "RobotTwin",
     "contact_terms",
     "load_robot",
+    "project_robots",
 ]

@@ -85,6 +85,11 @@ class Robot:
         return self.model.nv
 
     @property
+    def frame_names(self) -> tuple[str, ...]:
+        """Names of all frames of the model (contact candidates pick from these)."""
+        return self.twin.frame_names
+
+    @property
     def planar(self) -> bool:
         """True when the base keeps the robot in the world x-z plane."""
         return self.spec.base in PLANAR_BASES
@@ -123,9 +128,10 @@ def load_robot(
 
     Main arguments:
         source: a URDF path (absolute, or relative to the current directory or to the
-            repository root, e.g. ``"robots/hopper.urdf"``), an example-robot-data name
-            (``"solo12"``, ``"talos"``, ...), or a `RobotSpec` (then the keyword arguments
-            must stay at their defaults).
+            repository root, e.g. ``"robots/hopper.urdf"``), the name of one of the
+            project's URDFs (``"hopper"``, ``"ball"``, ``"monoped"``: `project_robots()`),
+            an example-robot-data name (``"solo12"``, ``"talos"``, ...), or a `RobotSpec`
+            (then the keyword arguments must stay at their defaults).
         base: ``"fixed"`` (the URDF as written), ``"planar"`` (x, z, pitch),
             ``"planar_xz"`` (x, z) or ``"floating"`` (x, y, z, ZYX Euler angles). The base
             joint is named ``root_joint``. example-robot-data's quaternion free-flyer is
@@ -190,12 +196,16 @@ def _resolve(source: str) -> _Source:
             f"URDF file `{source}` not found (tried {', '.join(str(c) for c in candidates)}); "
             "pass an existing path or an example-robot-data name such as 'solo12'"
         )
+    project = REPO_ROOT / "robots" / f"{source}.urdf"
+    if project.is_file():  # the project's own robots by name: "hopper", "ball", "monoped"
+        return _Source(project, (str(project.parent),), _anchored(project), None)
     from example_robot_data.robots_loader import ROBOTS  # heavy import, only when needed
 
     if source not in ROBOTS:
         raise RobotLoadError(
-            f"`{source}` is neither a URDF path nor an example-robot-data robot; "
-            f"known robots: {', '.join(sorted(ROBOTS))}"
+            f"`{source}` is neither a URDF path, a robot of the project's `robots/` "
+            f"({', '.join(project_robots())}) nor an example-robot-data robot; "
+            f"known example-robot-data robots: {', '.join(sorted(ROBOTS))}"
         )
     loader_cls = ROBOTS[source]
     if not loader_cls.urdf_filename:
@@ -227,6 +237,11 @@ def _resolve(source: str) -> _Source:
         )
     return _Source(urdf, (str(Path(model_path).parent.parent),), fixed_only or _anchored(urdf),
                    srdf)
+
+
+def project_robots() -> tuple[str, ...]:
+    """Names of the project's own URDFs in `robots/` (load them by name)."""
+    return tuple(sorted(p.stem for p in (REPO_ROOT / "robots").glob("*.urdf")))
 
 
 def _anchored(urdf: Path) -> str:
