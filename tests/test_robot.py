@@ -327,6 +327,22 @@ def test_spec_round_trips_through_json():
     assert robot.nv == 4
 
 
+def test_locked_positions_place_the_locked_joints():
+    """Monoped with the knee locked at 0.5 rad: the foot is where TF-9's kinematics put it."""
+    robot = load_robot("monoped", base="planar_xz", locked_joints=("knee_joint",),
+                       locked_positions=(0.5,))
+    assert robot.spec.to_dict()["locked_positions"] == [0.5]
+    assert RobotSpec.from_dict(json.loads(json.dumps(robot.spec.to_dict()))) == robot.spec
+    q = np.array([0.1, 0.4, 0.3])
+    foot = np.array(ca.Function("p", [robot.q], [robot.twin.frame_position("foot")])(q)).ravel()
+    expected = [0.1 - 0.2 * np.sin(0.3) - 0.2 * np.sin(0.8), 0.0,
+                0.4 - 0.2 * np.cos(0.3) - 0.2 * np.cos(0.8)]
+    assert_close(foot, expected, "foot with locked knee")
+    with pytest.raises(InvalidInput, match=r"`locked_positions` has 2 values for 1 "
+                       r"`locked_joints`.*one per locked joint or none"):
+        RobotSpec("monoped", locked_joints=("knee_joint",), locked_positions=(0.5, 0.1))
+
+
 def test_relative_path_resolves_against_repository_root(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert load_robot("robots/ball.urdf").nv == 0
@@ -411,5 +427,6 @@ def test_unknown_locked_joint():
 
 def test_spec_arguments_are_exclusive():
     spec = RobotSpec("robots/ball.urdf")
-    with pytest.raises(IncompatibleOptions, match=r"takes base, locked_joints and contacts"):
+    with pytest.raises(IncompatibleOptions, match=r"takes base, locked_joints, contacts and "
+                       r"locked_positions from the RobotSpec"):
         load_robot(spec, base="planar")

@@ -123,6 +123,7 @@ def load_robot(
     base: str = "fixed",
     locked_joints: tuple[str, ...] | list[str] = (),
     contacts: tuple[ContactSpec, ...] | list[ContactSpec] = (),
+    locked_positions: tuple[float, ...] | list[float] = (),
 ) -> Robot:
     """Load a robot from a URDF or example-robot-data and build its symbolic twin.
 
@@ -138,8 +139,10 @@ def load_robot(
             replaced by the chosen base.
 
     Other arguments:
-        locked_joints: joint names fixed at the neutral configuration and removed.
+        locked_joints: joint names fixed and removed from the model.
         contacts: contact candidates; their frames must exist in the reduced model.
+        locked_positions: positions [rad or m] of the locked joints (1-DoF joints), in
+            the order of `locked_joints`; default: the neutral configuration (0).
 
     Returns:
         A `Robot`.
@@ -151,17 +154,17 @@ def load_robot(
         FrameNotFound: a contact frame that is not in the model.
     """
     if isinstance(source, RobotSpec):
-        if base != "fixed" or tuple(locked_joints) or tuple(contacts):
+        if base != "fixed" or tuple(locked_joints) or tuple(contacts) or tuple(locked_positions):
             raise IncompatibleOptions(
-                "`load_robot(spec)` takes base, locked_joints and contacts from the RobotSpec; "
-                "do not pass them as keyword arguments too"
+                "`load_robot(spec)` takes base, locked_joints, contacts and locked_positions "
+                "from the RobotSpec; do not pass them as keyword arguments too"
             )
         spec = source
     else:
         if isinstance(source, os.PathLike):
             source = os.fspath(source)
         spec = RobotSpec(source=source, base=base, locked_joints=tuple(locked_joints),
-                         contacts=tuple(contacts))
+                         contacts=tuple(contacts), locked_positions=tuple(locked_positions))
     resolved = _resolve(spec.source)
     if spec.base != "fixed" and resolved.fixed_only:
         raise IncompatibleOptions(
@@ -173,7 +176,8 @@ def load_robot(
         pin.loadRotorParameters(model, str(resolved.armature_srdf), False)
         model.armature = np.multiply(model.rotorInertia.flat, np.square(model.rotorGearRatio.flat))
     if spec.locked_joints:
-        model, collision, visual = _reduce(model, collision, visual, spec.locked_joints)
+        model, collision, visual = _reduce(model, collision, visual, spec.locked_joints,
+                                           spec.locked_positions)
     twin = RobotTwin(model)
     frames = tuple(f.name for f in model.frames)
     for c in spec.contacts:
@@ -325,7 +329,8 @@ def _parse(src: _Source, base: str) -> tuple[pin.Model, pin.GeometryModel, pin.G
 
 
 def _reduce(model: pin.Model, collision: pin.GeometryModel, visual: pin.GeometryModel,
-            names: tuple[str, ...]) -> tuple[pin.Model, pin.GeometryModel, pin.GeometryModel]:
+            names: tuple[str, ...], positions: tuple[float, ...]
+            ) -> tuple[pin.Model, pin.GeometryModel, pin.GeometryModel]:
     known = [n for n in model.names[1:]]
     unknown = [n for n in names if n not in known]
     if unknown:
@@ -338,7 +343,13 @@ def _reduce(model: pin.Model, collision: pin.GeometryModel, visual: pin.Geometry
             "`locked_joints` cannot lock the base `root_joint`; use base='fixed' instead"
         )
     ids = [model.getJointId(n) for n in names]
-    reduced, (collision, visual) = pin.buildReducedModel(
-        model, [collision, visual], ids, pin.neutral(model)
-    )
+    q_ref = pin.neutral(model)
+    for name, jid, x in zip(names, ids, positions, strict=False):
+        if model.joints[jid].nq != 1:
+            raise InvalidInput(
+                f"`locked_positions` sets joint `{name}` which has nq={model.joints[jid].nq}; "
+                "only 1-DoF joints take a locked position: leave `locked_positions` empty"
+            )
+        q_ref[model.joints[jid].idx_q] = x
+    reduced, (collision, visual) = pin.buildReducedModel(model, [collision, visual], ids, q_ref)
     return reduced, collision, visual

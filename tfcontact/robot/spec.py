@@ -78,9 +78,12 @@ class RobotSpec:
         source: a URDF path (absolute, or relative to the current directory or the
             repository root) or an example-robot-data name such as ``"solo12"``.
         base: one of `BASES`.
-        locked_joints: names of joints fixed at the neutral configuration and removed
-            from the model (`pinocchio.buildReducedModel`).
+        locked_joints: names of joints fixed and removed from the model
+            (`pinocchio.buildReducedModel`).
         contacts: contact candidates.
+        locked_positions: the positions [rad or m] of the locked (1-DoF) joints, in the
+            order of `locked_joints`; the empty default locks them at the neutral
+            configuration (0).
 
     Raises:
         InvalidInput: wrong types, an unknown base, repeated names.
@@ -90,6 +93,7 @@ class RobotSpec:
     base: str = "fixed"
     locked_joints: tuple[str, ...] = ()
     contacts: tuple[ContactSpec, ...] = ()
+    locked_positions: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.source, str) or not self.source:
@@ -122,6 +126,16 @@ class RobotSpec:
         frames = [c.frame for c in contacts]
         if len(set(frames)) != len(frames):
             raise InvalidInput(f"`contacts` names a frame twice: {frames}")
+        positions = tuple(self.locked_positions)
+        if positions and len(positions) != len(locked):
+            raise InvalidInput(
+                f"`locked_positions` has {len(positions)} values for {len(locked)} "
+                f"`locked_joints` {locked}; give one per locked joint or none (neutral)"
+            )
+        for x in positions:
+            if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
+                raise InvalidInput(f"`locked_positions` must hold finite numbers, got {x!r}")
+        object.__setattr__(self, "locked_positions", tuple(float(x) for x in positions))
         object.__setattr__(self, "locked_joints", locked)
         object.__setattr__(self, "contacts", contacts)
 
@@ -132,18 +146,20 @@ class RobotSpec:
             "base": self.base,
             "locked_joints": list(self.locked_joints),
             "contacts": [c.to_dict() for c in self.contacts],
+            "locked_positions": list(self.locked_positions),
         }
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> RobotSpec:
         """Inverse of `to_dict`; unknown keys raise InvalidInput."""
-        _check_keys(data, {"source", "base", "locked_joints", "contacts"}, "RobotSpec",
-                    required={"source"})
+        _check_keys(data, {"source", "base", "locked_joints", "contacts", "locked_positions"},
+                    "RobotSpec", required={"source"})
         return cls(
             source=data["source"],
             base=data.get("base", "fixed"),
             locked_joints=tuple(data.get("locked_joints", ())),
             contacts=tuple(ContactSpec.from_dict(c) for c in data.get("contacts", ())),
+            locked_positions=tuple(data.get("locked_positions", ())),
         )
 
 
