@@ -139,6 +139,23 @@ def test_twin_frames_match_pinocchio(case):
             assert_close(drift, acc.vector, what + " drift")
 
 
+def test_jacobian_convention_linear_first_world_aligned():
+    """J v = (dp/dt, w) with dR/dt = [w]x R, by central differences along v (solo12 foot)."""
+    robot, _ = _case("solo12")
+    twin = robot.twin
+    f = ca.Function("f", [twin.q], [twin.frame_position("FL_FOOT"),
+                                    twin.frame_rotation("FL_FOOT"), twin.frame_jacobian("FL_FOOT")])
+    rng = np.random.default_rng(5)
+    q, v, eps = rng.uniform(-1, 1, robot.nv), rng.uniform(-1, 1, robot.nv), 1e-6
+    p_plus, R_plus, _ = (np.array(x) for x in f(q + eps * v))
+    p_minus, R_minus, _ = (np.array(x) for x in f(q - eps * v))
+    _, R, J = (np.array(x) for x in f(q))
+    twist = J @ v
+    np.testing.assert_allclose(twist[:3], ((p_plus - p_minus) / (2 * eps)).ravel(), atol=1e-8)
+    w_hat = (R_plus - R_minus) / (2 * eps) @ R.T
+    np.testing.assert_allclose(twist[3:], [w_hat[2, 1], w_hat[0, 2], w_hat[1, 0]], atol=1e-8)
+
+
 def test_talos_keeps_rotor_inertia():
     robot, _ = _case("talos_legs")
     assert robot.nv == 18
