@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import umsgpack
-from viz_hop import CONTACTS, hop_trajectory, hopper_models
+from viz_hop import CONTACTS, hop_trajectory, hopper_models, project_hop_trajectory
 
 from tfcontact.errors import InvalidInput, TrajectoryFileError
 from tfcontact.viz import (
@@ -426,15 +426,12 @@ def test_figures_without_history(tmp_path):
 # --------------------------------------------------------------------- CLI
 
 
-def test_cli_replay_writes_html(tmp_path, monkeypatch, capsys):
+def test_cli_replay_writes_html(tmp_path, capsys):
     import argparse
 
     from tfcontact.viz import cli_replay
 
-    save_trajectory(tmp_path / "hop", hop_trajectory())
-    # the robot comes from the sidecar through tfcontact.robot; here the test's own models
-    monkeypatch.setattr("tfcontact.viz.meshcat_replay._robot_models",
-                        lambda traj, robot: hopper_models())
+    save_trajectory(tmp_path / "hop", project_hop_trajectory())
     args = argparse.Namespace(trajectory=str(tmp_path / "hop.npz"),
                               html=str(tmp_path / "hop.html"), open=False, speed=0.5)
     assert cli_replay(args) == 0
@@ -445,3 +442,49 @@ def test_cli_replay_writes_html(tmp_path, monkeypatch, capsys):
                                  open=False)
     with pytest.raises(TrajectoryFileError, match="nothing.npz' does not exist"):
         cli_replay(damaged)
+
+
+def test_replay_rebuilds_the_robot_from_the_sidecar(tmp_path):
+    """robot=None: tfcontact.robot.load_robot(RobotSpec.from_dict(sidecar['robot']))."""
+    traj = project_hop_trajectory()
+    save_trajectory(tmp_path / "hop", traj)
+    result = replay(tmp_path / "hop.json", html=tmp_path / "hop.html", fps=10.0)
+    commands = [umsgpack.unpackb(c) for c in result.scene.commands()]
+    (animation,) = [c for c in commands if c["type"] == "set_animation"]
+    clips = {a["path"]: a["clip"] for a in animation["animations"]}
+    (position,) = [tr for tr in clips["/meshcat/tfcontact/robot/visuals/base_0"]["tracks"]
+                   if tr["name"] == ".position"]
+    phys = physical_time(traj)
+    for key in position["keys"]:  # the base box sits at (x, 0, z) of q = (x, z, pitch, l)
+        t = key["time"] / 10.0
+        x, z = (np.interp(t, phys.t, phys.q[:, j]) for j in (0, 1))
+        np.testing.assert_allclose(key["value"], [x, 0.0, z], atol=1e-12)
+
+
+@pytest.mark.slow
+def test_check_script_with_plain_pinocchio(tmp_path):
+    """scripts/check_trajectory.py rebuilds the robot from the sidecar and checks the plan."""
+    import subprocess
+    import sys
+
+    script = Path(__file__).resolve().parents[1] / "scripts" / "check_trajectory.py"
+    npz, sidecar = save_trajectory(tmp_path / "hop", project_hop_trajectory())
+
+    def run():
+        done = subprocess.run([sys.executable, str(script), str(sidecar)], capture_output=True,
+                              text=True, timeout=120)
+        return done.returncode, done.stdout
+
+    code, out = run()
+    assert code == 0, out
+    assert "ok   gaps" in out and "ok   impacts  1 impact(s)" in out
+    with np.load(npz) as f:
+        arrays = {k: f[k] for k in f.files}
+    arrays["impulse"] = 1.01 * arrays["impulse"]  # a wrong impulse breaks the momentum balance
+    _rewrite_npz(npz, arrays)
+    code, out = run()
+    assert code == 1 and "FAIL impacts" in out and "ok   gaps" in out, out
+    arrays["gap"] = arrays["gap"] + 1e-3
+    _rewrite_npz(npz, arrays)
+    code, out = run()
+    assert code == 1 and "FAIL gaps" in out, out

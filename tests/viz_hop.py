@@ -98,3 +98,66 @@ def hop_trajectory(*, n_flight: int = 41, n_frozen: int = 6) -> Trajectory:
                             {"sigma": 1e-3, "residual": 1e-9, "iterations": 10}]},
         verification={"note": "hand-made analytic hop"},
     )
+
+
+PROJECT_HOPPER = {"source": "robots/hopper.urdf", "base": "planar",
+                  "locked_joints": ["hip_joint"], "contacts": [{"frame": "foot", "radius": 0.02}],
+                  "locked_positions": []}
+
+
+def project_hop_trajectory() -> Trajectory:
+    """A hop of the project's TF-8 hopper (q = x, z, pitch, l), gap from the closed form.
+
+    Foot centre (x - l sin(pitch), z - l cos(pitch)), gap = z - l cos(pitch) - r with
+    r = 0.02 m. The touchdown at t = 0.4 is an inelastic impact whose impulse is
+    consistent with the momentum balance M(q) (v+ - v-) = J(q)^T Lambda (Lambda along +z,
+    chosen so that the foot's normal velocity becomes 0).
+    """
+    from tfcontact.robot import RobotSpec, load_robot
+
+    robot = load_robot(RobotSpec.from_dict(PROJECT_HOPPER))
+    model, data = robot.model, robot.model.createData()
+    foot = model.getFrameId("foot")
+    radius = 0.02
+
+    def configuration(t):
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        stance = (t > 0.4) & (t < 0.6)
+        leg = 0.4 - np.where(stance, 0.15 * np.sin(np.pi * (t - 0.4) / 0.2), 0.0)
+        pitch = 0.1 * np.sin(2 * np.pi * t)
+        z = _foot_height(t) + radius + leg * np.cos(pitch)
+        return np.stack([0.5 * t, z, pitch, leg], axis=1)
+
+    def velocity(t):
+        h = 1e-6
+        return (configuration(t + h) - configuration(t - h)) / (2 * h)
+
+    t_a = np.linspace(0.0, 0.4, 41)
+    t_b = np.linspace(0.4, 1.0, 61)[1:]
+    v_pre = (configuration(0.4) - configuration(0.4 - 1e-6))[0] / 1e-6
+    q_imp = configuration(0.4)[0]
+    pin.computeAllTerms(model, data, q_imp, v_pre)
+    J = pin.getFrameJacobian(model, data, foot, pin.LOCAL_WORLD_ALIGNED)[:3]
+    M = data.M
+    n = J[2]  # normal direction: world z
+    minv_n = np.linalg.solve(M, n)
+    lam = -(n @ v_pre) / (n @ minv_n)  # inelastic: the foot's normal velocity becomes 0
+    v_post = v_pre + lam * minv_n
+    w = np.linspace(0.0, 1.0, 6)[1:, None]
+    tau = np.concatenate([t_a, 0.4 + 0.1 * w[:, 0], t_b + 0.1])
+    clock = np.concatenate([t_a, np.full(5, 0.4), t_b])
+    q = np.concatenate([configuration(t_a), np.repeat(q_imp[None], 5, 0), configuration(t_b)])
+    v_a = velocity(t_a)
+    v_a[-1] = v_pre
+    v = np.concatenate([v_a, (1 - w) * v_pre + w * v_post, velocity(t_b)])
+    N = tau.size
+    pitch, leg = q[:, 2], q[:, 3]
+    gap = (q[:, 1] - leg * np.cos(pitch) - radius)[:, None]
+    normal_velocity = (v[:, 1] - v[:, 3] * np.cos(pitch) + leg * np.sin(pitch) * v[:, 2])[:, None]
+    impulse = np.zeros((N, 1, 3))
+    impulse[40 + 5, 0, 2] = lam  # at the exit sample of the frozen piece
+    return Trajectory(
+        tau=tau, clock=clock, s=np.ones(N), q=q, v=v, u=np.zeros((N, 1)), gap=gap,
+        normal_velocity=normal_velocity, impulse=impulse, status="success",
+        robot=dict(PROJECT_HOPPER), scene={"terrain": {"type": "flat", "height": 0.0}},
+    )
