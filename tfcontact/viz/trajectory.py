@@ -44,6 +44,10 @@ A script of one's own reads the pair with numpy and json alone::
     meta = json.load(open("plan.json"))
     arrays = np.load("plan.npz")
     t, q_phys = arrays["t"], arrays["q"][arrays["t_index"]]
+
+`scripts/check_trajectory.py` goes further without importing tfcontact: it rebuilds the
+robot from `meta["robot"]` with plain Pinocchio and checks the gaps and the momentum
+balance of every impact.
 """
 
 from __future__ import annotations
