@@ -279,3 +279,27 @@ def test_standard_discretization_is_first_order_across_the_switch():
     assert fitted_order(steps, errors) < 1.5
     _, fesd_errors = global_errors(3, (100,), Fesd())
     assert fesd_errors[0] < 1e-3 * errors[-1]
+
+
+def test_bad_grid_and_method_options_are_rejected():
+    with pytest.raises(InvalidInput, match=r"`n_intervals` must be a positive integer, got 0"):
+        FesdGrid(0, 2, 1.0)
+    with pytest.raises(InvalidInput, match=r"`n_finite_elements` must be a positive integer"):
+        FesdGrid(2, -1, 1.0)
+    with pytest.raises(InvalidInput, match=r"`horizon` must be a positive number \[s\], got nan"):
+        FesdGrid(2, 2, float("nan"))
+    with pytest.raises(InvalidInput, match=r"`gamma_h` must lie in \(0, 1\], got 1.5"):
+        Fesd(gamma_h=1.5)
+    with pytest.raises(InvalidInput, match=r"`cross_complementarity` must be 'stage' or"):
+        Fesd(cross_complementarity="all")
+    with pytest.raises(InvalidInput, match=r"`step_equilibration` must be HeuristicMean\(\)"):
+        Fesd(step_equilibration="mean")
+    with pytest.raises(InvalidInput, match=r"`method` must be Fesd\(...\) or Standard\(\)"):
+        discretize(sign_system(), grid=FesdGrid(1, 2, 1.0), method="fesd")
+    with pytest.raises(InvalidInput, match=r"`system` must be a StewartSystem or Heaviside"):
+        discretize("x' = 1", grid=FesdGrid(1, 2, 1.0))
+    with pytest.raises(InvalidInput, match=r"`controls` must be 'variables' or 'parameters'"):
+        discretize(sign_system(), grid=FesdGrid(1, 2, 1.0), controls="fixed")
+    disc = discretize(sign_system(), grid=FesdGrid(1, 2, 1.0))
+    with pytest.raises(InvalidInput, match=r"`x0` has 2 entries, expected n_x = 1"):
+        disc.parameters([1.0, 2.0])
