@@ -488,3 +488,39 @@ def test_check_script_with_plain_pinocchio(tmp_path):
     _rewrite_npz(npz, arrays)
     code, out = run()
     assert code == 1 and "FAIL gaps" in out, out
+
+
+@pytest.mark.slow
+def test_cli_live_viewer_stops_its_server_on_sigterm(tmp_path):
+    """`tfcontact replay X` without --html serves until stopped, then ends meshcat's server."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    import urllib.request
+
+    save_trajectory(tmp_path / "hop", project_hop_trajectory())
+    code = ("import argparse, sys; from tfcontact.viz import cli_replay; "
+            "sys.exit(cli_replay(argparse.Namespace(trajectory=sys.argv[1], html=None, "
+            "open=False)))")
+    proc = subprocess.Popen([sys.executable, "-u", "-c", code, str(tmp_path / "hop.npz")],
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        lines = []
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not any("Ctrl-C" in x for x in lines):
+            lines.append(proc.stdout.readline())
+        url = next(m.group(0) for x in lines
+                   if (m := re.search(r"http://127\.0\.0\.1:\d+/static/", x)))
+        with urllib.request.urlopen(url, timeout=10) as response:
+            assert response.status == 200
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=30) == 0
+        with pytest.raises(OSError):
+            urllib.request.urlopen(url, timeout=5)
+    finally:
+        if proc.poll() is None:
+            os.kill(proc.pid, signal.SIGKILL)
+            proc.wait()
+        proc.stdout.close()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import time
 import webbrowser
 
@@ -23,7 +24,7 @@ def cli_replay(args: argparse.Namespace) -> int:
         plain_html: write the page's scripts uncompressed (optional, default False).
 
     Without `--html` a live meshcat server is started on 127.0.0.1; the command then
-    waits until Ctrl-C and stops the server.
+    waits until Ctrl-C (or SIGTERM) and stops the server.
 
     Returns:
         The exit code (0).
@@ -49,11 +50,16 @@ def cli_replay(args: argparse.Namespace) -> int:
         webbrowser.open(result.url)
     print("the replay plays in the browser tab ('Animations' panel: play, reset, time);"
           " press Ctrl-C to stop the viewer")
+    def stop(signum, frame):  # SIGTERM too: stop the server (it runs in its own session)
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, stop)
     try:
         while True:
             time.sleep(3600)
     except KeyboardInterrupt:
         pass
     finally:
+        signal.signal(signal.SIGTERM, previous)
         result.close()
     return 0
