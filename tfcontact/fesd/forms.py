@@ -30,7 +30,7 @@ from tfcontact.fesd.system import HeavisideSystem, StewartSystem
 
 @dataclass(frozen=True)
 class Block:
-    """A named block of algebraic variables at one point: size, bounds, initial guess."""
+    """A named block of algebraic variables at one point: its size and bounds."""
 
     name: str
     size: int
