@@ -111,3 +111,66 @@ def coulomb_slide(v0: float, mu: float, t: np.ndarray | float, gravity: float = 
     if accel >= 0:
         return v0 + accel * t
     return np.maximum(v0 + accel * t, 0.0)
+
+
+def exact_sliding_particle(
+    tau: float, *, height: float, vx0: float, mu: float, a_n: float, gravity: float = G
+) -> np.ndarray:
+    """The exact time-freezing solution y(tau) = (q_x, q_z, v_x, v_z, t) of a unit point
+    mass dropped from rest height `height` with horizontal speed vx0 > 0 onto ground with
+    Coulomb friction mu, inelastic impact, auxiliary gain a_n (planar builder).
+
+    Free fall until tau_1 = sqrt(2h/g); frozen while v_z rises at a_n to 0 (the friction
+    auxiliary field reduces v_x at mu a_n, clamped at 0); then on the contact surface the
+    clock runs at gamma = a_n/(a_n + g) and v_x decreases at mu g per unit of physical time
+    until it stops (stick, a sliding mode with v_x = 0).
+    """
+    t1 = drop_time(height, gravity)
+    v_imp = gravity * t1
+    if tau <= t1:
+        return np.array([vx0 * tau, height - 0.5 * gravity * tau**2, vx0, -gravity * tau, tau])
+    x1 = vx0 * t1
+    frozen = v_imp / a_n
+    if tau <= t1 + frozen:
+        s = tau - t1
+        vx = max(vx0 - mu * a_n * s, 0.0)
+        return np.array([x1, 0.0, vx, -v_imp + a_n * s, t1])
+    gamma = a_n / (a_n + gravity)
+    vx_post = max(vx0 - mu * v_imp, 0.0)
+    t = t1 + gamma * (tau - t1 - frozen)
+    s = t - t1
+    stop = vx_post / (mu * gravity) if mu > 0 else np.inf
+    s_slide = min(s, stop)
+    vx = vx_post - mu * gravity * s_slide
+    return np.array([x1 + vx_post * s_slide - 0.5 * mu * gravity * s_slide**2, 0.0, vx, 0.0, t])
+
+
+def exact_bouncing_ball(
+    tau: float, *, height: float, restitution: float, stiffness: float, gravity: float = G
+) -> np.ndarray:
+    """The exact elastic time-freezing solution y(tau) = (q, v, t) of a 1-D ball dropped
+    from rest at `height`: free flights and, inside the ground, the damped oscillator
+    q'' = -k q - c_d q' with frozen clock (`tfcontact.timefreezing.elastic`)."""
+    from tfcontact.timefreezing.elastic import elastic_damping
+
+    c_d = elastic_damping(restitution, stiffness) if restitution < 1 else 0.0
+    omega = math.sqrt(stiffness - c_d**2 / 4)
+    frozen = math.pi / omega
+    q, v, t, clock_tau = height, 0.0, 0.0, 0.0  # state at numerical time clock_tau
+    while True:
+        # free flight from (q, v) until q = 0 going down
+        flight = (v + math.sqrt(v**2 + 2 * gravity * q)) / gravity
+        if tau <= clock_tau + flight:
+            s = tau - clock_tau
+            return np.array([q + v * s - 0.5 * gravity * s**2, v - gravity * s, t + s])
+        clock_tau += flight
+        t += flight
+        v_in = v - gravity * flight
+        if tau <= clock_tau + frozen:
+            s = tau - clock_tau  # q(s) = (v_in/omega) e^{-c s/2} sin(omega s)
+            decay = math.exp(-c_d * s / 2)
+            qs = v_in / omega * decay * math.sin(omega * s)
+            vs = v_in * decay * (math.cos(omega * s) - c_d / (2 * omega) * math.sin(omega * s))
+            return np.array([qs, vs, t])
+        clock_tau += frozen
+        q, v = 0.0, -restitution * v_in
