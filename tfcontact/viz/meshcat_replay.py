@@ -298,7 +298,12 @@ def _make_visualizer_class():
             if extent > 0:
                 vertices, faces = simplify_mesh(vertices, faces, self.mesh_detail * extent)
             self._prescaled.add(geometry_object.name)
-            return mg.TriangularMeshGeometry(vertices, faces)
+            # flat shading: a clustered mesh's shared vertex normals would smear its shading
+            rgba = np.clip(np.asarray(geometry_object.meshColor, dtype=float), 0.0, 1.0)
+            color = int(rgba[0] * 255) * 65536 + int(rgba[1] * 255) * 256 + int(rgba[2] * 255)
+            material = mg.MeshPhongMaterial(color=color, opacity=float(rgba[3]),
+                                            flatShading=True)
+            return mg.Mesh(mg.TriangularMeshGeometry(vertices, faces), material)
 
         def shape_scale(self, geometry_object) -> np.ndarray | None:
             """The static scale of the shape node, or None (primitives, coarsened meshes)."""
@@ -454,7 +459,10 @@ def replay(
         forces: draw the contact forces as arrows (longest = 0.3 m).
         contact_tol: a contact counts as closed (green) when its gap is <= this [m].
         mesh_detail: re-mesh mesh files by vertex clustering on cells of this fraction of
-            each mesh's bounding-box diagonal [-]; None keeps the files as they are.
+            each mesh's bounding-box diagonal [-], drawn flat-shaded in the URDF colour
+            (meshes are read by coal, as Pinocchio reads them); None sends the files as
+            they are (textures and Collada materials kept, but three.js's Collada loader
+            may place a DAE differently from Pinocchio: ur5's base, for one).
         max_frames: key frames at most; `fps` is lowered to fit.
         compress: gzip the page's scripts (about 3 times smaller; unpacked by the browser's
             DecompressionStream: Chromium 80, Firefox 113, Safari 16.4 or later); False
