@@ -588,3 +588,43 @@ def test_fesd_beats_the_standard_discretisation_on_a_sliding_drop():
         errors[name] = np.abs(result.x[-1] - exact).max()
     assert errors["fesd"] < 1e-4
     assert errors["fesd"] < errors["standard"] / 100
+
+
+# ----------------------------------------------------------------------------- robots
+
+
+def test_from_robot_ball_is_the_point_mass():
+    from tfcontact.robot import ContactSpec, load_robot
+    from tfcontact.timefreezing import from_robot
+
+    robot = load_robot("ball", base="planar_xz", contacts=(ContactSpec("ball", 0.05),))
+    cls = from_robot(robot, mu=0.3, a_n=10.0)
+    assert cls.n_u == 0 and cls.n_contacts == 1
+    terms = ca.Function("t", [cls.q, cls.v], [cls.mass_matrix, cls.forces, cls.contacts[0].gap,
+                                               cls.contacts[0].normal, cls.contacts[0].tangents])
+    mass, forces, gap, normal, tangents = (np.asarray(x) for x in terms([0.3, 0.7], [1.0, 2.0]))
+    np.testing.assert_allclose(mass, np.eye(2), atol=1e-14)
+    np.testing.assert_allclose(forces.ravel(), [0.0, -G], atol=1e-12)
+    assert gap.item() == pytest.approx(0.65)
+    np.testing.assert_allclose(normal.ravel(), [0, 1], atol=1e-14)
+    np.testing.assert_allclose(tangents.ravel(), [1, 0], atol=1e-14)
+    assert time_freeze(cls).pss.n_switching == 3
+
+
+def test_from_robot_hopper_foot_falls_freely_at_rest(rng):
+    """At v = 0 and u = 0 a floating robot falls as a whole: phi = -g for the foot, and
+    gamma = D a_n / (D a_n + g) with D = n^T M^{-1} n from the twin."""
+    from tfcontact.robot import ContactSpec, load_robot
+    from tfcontact.timefreezing import from_robot
+
+    robot = load_robot("hopper", base="planar", contacts=(ContactSpec("foot", 0.02),))
+    cls = from_robot(robot, mu=0.45, a_n=100.0)
+    assert cls.control_names == ("u_hip_joint", "u_leg_joint")
+    f = ca.Function("f", [cls.q, cls.v, cls.u], [cls.phi(0), cls.gamma(0), cls.delassus(0)])
+    for _ in range(3):
+        q = rng.uniform(-0.5, 0.5, cls.n_q)
+        phi, gamma, d = (float(x) for x in f(q, np.zeros(cls.n_q), np.zeros(cls.n_u)))
+        assert phi == pytest.approx(-G, rel=1e-9)
+        assert gamma == pytest.approx(d * 100.0 / (d * 100.0 + G), rel=1e-12)
+    with pytest.raises(InvalidInput, match="`actuated` names unknown joints"):
+        from_robot(robot, actuated=("knee",))

@@ -4,6 +4,7 @@ The time-freezing reformulation (DESIGN.md 4.1-4.5) removes the state jumps of i
 (and of hysteresis) by auxiliary dynamics on the prohibited region and a clock state that
 stops while they act. Entry points:
 
+* `from_robot(robot, ground, mu=...)`: the CLS of a `tfcontact.robot.Robot`.
 * `time_freeze(cls, method=...)`: a `ComplementarityLagrangianSystem` -> `TimeFreezingSystem`
   (`Inelastic()` Heaviside form with friction, `Elastic(stiffness)` Stewart form).
 * `hysteresis_system(...)`: a two-mode hysteresis -> `TimeFreezingSystem` (Stewart, Voronoi).
@@ -15,6 +16,7 @@ stops while they act. Entry points:
 from tfcontact.timefreezing.builder import time_freeze
 from tfcontact.timefreezing.cls import Cls, ComplementarityLagrangianSystem, Contact
 from tfcontact.timefreezing.elastic import Elastic, elastic_damping, frozen_duration
+from tfcontact.timefreezing.from_robot import from_robot
 from tfcontact.timefreezing.hysteresis import VORONOI_POINTS, hysteresis_system, push_speed
 from tfcontact.timefreezing.inelastic import Inelastic
 from tfcontact.timefreezing.physical import (
@@ -48,6 +50,7 @@ __all__ = [
     "ReferenceSimulation",
     "TimeFreezingSystem",
     "elastic_damping",
+    "from_robot",
     "frozen_duration",
     "hysteresis_system",
     "push_speed",

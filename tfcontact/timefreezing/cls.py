@@ -256,11 +256,15 @@ class ComplementarityLagrangianSystem:
     # ------------------------------------------------------------------ expressions
 
     def solve_mass(self, rhs: ca.SX) -> ca.SX:
-        """M(q)^{-1} rhs, exact: a numeric inverse when M is constant, else casadi.solve."""
+        """M(q)^{-1} rhs: a numeric inverse when M is constant, else a symbolic sparse
+        LDL^T factorisation of M(q) (never an explicit inverse)."""
         if not ca.depends_on(self.mass_matrix, self.q):
             inverse = np.linalg.inv(np.asarray(ca.DM(ca.evalf(self.mass_matrix))))
             return ca.mtimes(ca.DM(inverse), rhs)
-        return ca.solve(self.mass_matrix, rhs)
+        if "ldl" not in self._functions:  # sparse symbolic LDL^T of M(q), built once
+            self._functions["ldl"] = ca.ldl(self.mass_matrix)
+        d, lt, p = self._functions["ldl"]
+        return ca.ldl_solve(rhs, d, lt, p)
 
     @property
     def acceleration(self) -> ca.SX:
