@@ -1,0 +1,428 @@
+"""Optimal control with time-freezing: contact-rich plans in physical time.
+
+A `ContactProblem` states an OCP for a complementarity Lagrangian system (impacts,
+friction) in *physical* time; `solve_contact` turns it into a time-freezing OCP of the
+generic layer and solves it (DESIGN.md 4.1, [AUTO23] section 5):
+
+* the speed of time s_k, one per control interval, 1 <= s_k <= s_max, scales every mode;
+* the clock constraints t(tau_k) = k T / N at every control-interval boundary (or only
+  t(T_numerical) = T), which tie numerical and physical time;
+* the running cost is integrated in physical time: L s in free flight, 0 while frozen
+  (the modes' clock row; `with_lagrange_cost`), references are evaluated at the clock t;
+* the initial guess is the start state everywhere with zero controls: no contact schedule.
+
+After the solve the plan is mapped to physical time (frozen pieces dropped, impacts as
+jumps) and checked independently (`verify_plan`): a re-simulation of its controls on a
+finer FESD grid, the gaps, the friction cone of the recovered contact impulses and the
+clock. Only a plan that converged and passed these checks has status success.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from tfcontact.errors import InvalidInput, SolveFailed
+from tfcontact.fesd import Fesd, RadauIIA, Scheme, simulate
+from tfcontact.mpcc import Homotopy, Ipopt, MpccStatus, Relaxation, Scholtes
+from tfcontact.ocp.problem import Constraint, OptimalControlProblem
+from tfcontact.ocp.solve import OcpResult, Transcription, solve
+from tfcontact.ocp.verify import (
+    Verification,
+    clock_checks,
+    contact_impulses,
+    friction_cone_violation,
+)
+from tfcontact.timefreezing import (
+    PhysicalTrajectory,
+    TimeFreezingSystem,
+    to_physical_time,
+    with_lagrange_cost,
+    with_speed_of_time,
+)
+
+
+def _vector(value: object, n: int, default: float, name: str) -> np.ndarray:
+    if value is None:
+        return np.full(n, default)
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    if arr.size == 1 and n != 1:
+        return np.full(n, float(arr[0]))
+    if arr.size != n:
+        raise InvalidInput(f"`{name}` has {arr.size} entries, expected {n}")
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class ContactProblem:
+    """An OCP of a time-freezing system, stated in physical time.
+
+    Main args:
+        system: the `TimeFreezingSystem` from `time_freeze(cls)` (no speed of time, no cost
+            state yet: this layer adds both).
+        q0, v0: the initial configuration and velocity, shape (n_q,).
+        horizon: the physical horizon T [s].
+        n_intervals: N control intervals.
+
+    Other args:
+        running_cost: L(y, u) [cost]/[s], an SX scalar in `system.y` and `system.u`
+            (the clock y[clock_index] may appear, for references x_ref(t)).
+        terminal_cost: an SX scalar in `system.y` [cost].
+        u_lower, u_upper: bounds of the physical controls, (n_u,) or scalar.
+        q_lower, q_upper, v_lower, v_upper: state bounds at every grid point.
+        speed_of_time: (s_min, s_max) bounds of the speed of time; PROBLEMS.md 0.1
+            defaults (1, 25).
+        numerical_horizon: the numerical horizon [s] (default: `horizon`).
+        stagewise_clock: impose t = k T / N at every control-interval boundary
+            (else only at the end).
+        path: `Constraint` in (y, u) at every stage point.
+        terminal: `Constraint` in y at the end.
+    """
+
+    system: TimeFreezingSystem
+    q0: np.ndarray
+    v0: np.ndarray
+    horizon: float
+    n_intervals: int
+    running_cost: ca.SX = field(default_factory=lambda: ca.SX(0))
+    terminal_cost: ca.SX = field(default_factory=lambda: ca.SX(0))
+    u_lower: np.ndarray | float | None = None
+    u_upper: np.ndarray | float | None = None
+    q_lower: np.ndarray | float | None = None
+    q_upper: np.ndarray | float | None = None
+    v_lower: np.ndarray | float | None = None
+    v_upper: np.ndarray | float | None = None
+    speed_of_time: tuple[float, float] = (1.0, 25.0)
+    numerical_horizon: float | None = None
+    stagewise_clock: bool = True
+    path: Constraint | None = None
+    terminal: Constraint | None = None
+
+    def __post_init__(self) -> None:
+        tf = self.system
+        if not isinstance(tf, TimeFreezingSystem) or tf.cls is None:
+            raise InvalidInput(
+                "`system` must be the TimeFreezingSystem of a CLS (from `time_freeze`)"
+            )
+        if tf.speed_of_time_index is not None or tf.cost_index is not None:
+            raise InvalidInput(
+                "`system` already has a speed of time or a cost state; pass the plain "
+                "`time_freeze(cls)` result, the contact OCP adds both"
+            )
+        n_q = tf.cls.n_q
+        n_u = tf.u.numel()
+        for name in ("q0", "v0"):
+            value = _vector(getattr(self, name), n_q, 0.0, name)
+            object.__setattr__(self, name, value)
+        if not (np.isfinite(self.horizon) and self.horizon > 0):
+            raise InvalidInput(f"`horizon` must be a positive time [s], got {self.horizon!r}")
+        if isinstance(self.n_intervals, bool) or not isinstance(self.n_intervals, int) or (
+                self.n_intervals < 1):
+            raise InvalidInput(f"`n_intervals` must be a positive integer, got "
+                               f"{self.n_intervals!r}")
+        s_min, s_max = self.speed_of_time
+        if not 0 < s_min <= s_max:
+            raise InvalidInput(
+                f"`speed_of_time` must be (s_min, s_max) with 0 < s_min <= s_max, "
+                f"got {self.speed_of_time}"
+            )
+        if self.numerical_horizon is not None and not self.numerical_horizon > 0:
+            raise InvalidInput(
+                f"`numerical_horizon` must be positive [s], got {self.numerical_horizon!r}")
+        for name, n, default in (("u_lower", n_u, -np.inf), ("u_upper", n_u, np.inf),
+                                 ("q_lower", n_q, -np.inf), ("q_upper", n_q, np.inf),
+                                 ("v_lower", n_q, -np.inf), ("v_upper", n_q, np.inf)):
+            object.__setattr__(self, name, _vector(getattr(self, name), n, default, name))
+        for name in ("running_cost", "terminal_cost"):
+            value = getattr(self, name)
+            value = ca.SX(value) if not isinstance(value, ca.SX) else value
+            if value.numel() != 1:
+                raise InvalidInput(f"`{name}` must be a scalar SX expression")
+            object.__setattr__(self, name, value)
+
+    @property
+    def tau_horizon(self) -> float:
+        return self.horizon if self.numerical_horizon is None else self.numerical_horizon
+
+
+@dataclass(frozen=True)
+class ContactSolverOptions:
+    """How a contact OCP is discretised and solved.
+
+    Defaults follow PROBLEMS.md 0.1 where they work here: FESD, Radau IIA with 2 stages,
+    N_FE = 3, Scholtes relaxation, sigma_0 = 1, kappa = 0.1.
+
+    Args:
+        scheme: the IRK scheme.
+        n_finite_elements: N_FE per control interval.
+        method: `Fesd(...)` or `Standard()`.
+        relaxation: the MPCC relaxation.
+        homotopy: the sigma schedule and complementarity tolerance.
+        nlp: IPOPT settings.
+        verify_refinement: the re-simulation uses this many steps per control interval.
+        verify_scheme: the re-simulation's IRK scheme.
+        end_state_tolerance, gap_tolerance, cone_tolerance, clock_tolerance: the checks'
+            tolerances (see `Verification`).
+    """
+
+    scheme: Scheme = field(default_factory=lambda: RadauIIA(2))
+    n_finite_elements: int = 3
+    method: Fesd = field(default_factory=Fesd)
+    relaxation: Relaxation = field(default_factory=Scholtes)
+    homotopy: Homotopy = field(default_factory=lambda: Homotopy(tolerance=1e-7))
+    nlp: Ipopt = field(default_factory=lambda: Ipopt(tol=1e-8, max_iter=2000))
+    verify_refinement: int = 4
+    verify_scheme: Scheme = field(default_factory=lambda: RadauIIA(3))
+    end_state_tolerance: float = 5e-2
+    gap_tolerance: float = 1e-3
+    cone_tolerance: float = 1e-3
+    clock_tolerance: float = 1e-6
+
+    def __post_init__(self) -> None:
+        if self.verify_refinement < 1:
+            raise InvalidInput(
+                f"`verify_refinement` must be at least 1, got {self.verify_refinement}")
+        for name in ("end_state_tolerance", "gap_tolerance", "cone_tolerance",
+                     "clock_tolerance"):
+            if not getattr(self, name) > 0:
+                raise InvalidInput(f"`{name}` must be positive, got {getattr(self, name)}")
+
+
+@dataclass(frozen=True, eq=False)
+class ContactResult:
+    """A contact plan: the OCP solution, its physical-time trajectory and its checks.
+
+    Attributes:
+        problem: the `ContactProblem`.
+        system: the solved time-freezing system (with speed of time and cost state).
+        ocp: the generic `OcpResult` (numerical time tau).
+        tau, y: numerical time [s] and states at the element boundaries.
+        u: physical controls per interval, (N, n_u); speed_of_time: (N,).
+        physical: the `PhysicalTrajectory` (frozen pieces dropped, impacts as jumps).
+        verification: the independent checks.
+        timings: seconds by phase ("build", "solve", "verify").
+    """
+
+    problem: ContactProblem
+    system: TimeFreezingSystem
+    ocp: OcpResult
+    tau: np.ndarray
+    y: np.ndarray
+    u: np.ndarray
+    speed_of_time: np.ndarray
+    physical: PhysicalTrajectory
+    verification: Verification
+    timings: dict[str, float]
+
+    @property
+    def success(self) -> bool:
+        """Converged and passed the independent checks."""
+        return self.ocp.success and self.verification.passed
+
+    @property
+    def status(self) -> str:
+        if not self.ocp.success:
+            return self.ocp.status.name.lower()
+        return "converged" if self.verification.passed else "verification_failed"
+
+    @property
+    def message(self) -> str:
+        return f"{self.ocp.message}; {self.verification.summary()}"
+
+    def summary(self) -> str:
+        """A few lines for a terminal: status, objective, work, residual, time, checks."""
+        o = self.ocp
+        t = self.timings
+        return "\n".join([
+            f"status: {self.status}",
+            f"objective: {o.cost:.6g}   NLPs: {o.n_nlps}   IPOPT iterations: "
+            f"{o.total_iterations}   complementarity residual: {o.residual:.2e}",
+            f"wall time: build {t['build']:.2f} s, solve {t['solve']:.2f} s, "
+            f"verify {t['verify']:.2f} s",
+            f"impacts at t = {np.round(self.physical.impact_times, 4).tolist()} s",
+            self.verification.summary(),
+        ])
+
+
+def _transcribe(problem: ContactProblem) -> tuple[OptimalControlProblem, TimeFreezingSystem]:
+    tf = problem.system
+    u_phys = tf.u
+    # The running cost in physical time: the rate is L dt/dtau per mode (0 while frozen).
+    tf = with_lagrange_cost(tf, problem.running_cost)
+    tf = with_speed_of_time(tf)
+    n_y = tf.n_y
+    clock = tf.clock_index
+    s_min, s_max = problem.speed_of_time
+    lower = np.full(n_y, -np.inf)
+    upper = np.full(n_y, np.inf)
+    lower[tf.q_index], upper[tf.q_index] = problem.q_lower, problem.q_upper
+    lower[tf.v_index], upper[tf.v_index] = problem.v_lower, problem.v_upper
+    lower[clock] = 0.0
+    y0 = tf.initial_state(problem.q0, problem.v0)
+    # with_lagrange_cost and with_speed_of_time keep the original SX symbols, so costs
+    # written in the plain system's y and u stay valid.
+    mayer = problem.terminal_cost + tf.pss.x[tf.cost_index]
+    n_int = problem.n_intervals
+    T = problem.horizon
+
+    def clock_constraint(k: int, y_k: ca.SX) -> Constraint | None:
+        if problem.stagewise_clock or k == n_int:
+            return Constraint(y_k[clock] - k * T / n_int)
+        return None
+
+    n_u = u_phys.numel()
+    u_lower = np.concatenate([problem.u_lower, [s_min]])
+    u_upper = np.concatenate([problem.u_upper, [s_max]])
+    u_guess = np.concatenate([np.clip(np.zeros(n_u), problem.u_lower, problem.u_upper),
+                              [np.clip(T / problem.tau_horizon, s_min, s_max)]])
+    terminal = problem.terminal
+    ocp = OptimalControlProblem(
+        system=tf.pss, x0=y0, horizon=problem.tau_horizon, n_intervals=n_int,
+        mayer=mayer, u_lower=u_lower, u_upper=u_upper, x_lower=lower, x_upper=upper,
+        path=problem.path, terminal=terminal, boundary_constraints=clock_constraint,
+        x_guess=y0, u_guess=u_guess,
+    )
+    return ocp, tf
+
+
+def verify_plan(
+    problem: ContactProblem,
+    system: TimeFreezingSystem,
+    ocp: OcpResult,
+    physical: PhysicalTrajectory,
+    options: ContactSolverOptions,
+) -> Verification:
+    """The independent checks of a contact plan (see `Verification`).
+
+    Re-simulates the plan's controls (physical controls and speed of time per interval)
+    with the FESD simulator on a grid `verify_refinement` times finer, with a higher-order
+    scheme, and compares the end states; checks the gaps on the plan, the friction cone
+    of the contact impulses recovered from the momentum balance in physical time
+    (M dv - int f_v dt = J^T Lambda, using the CLS's own M, f_v and contact directions,
+    not the time-freezing modes) and the clock.
+    """
+    cls = system.cls
+    notes: list[str] = []
+    n_int = problem.n_intervals
+    refine = options.verify_refinement
+    u_steps = np.repeat(ocp.u, refine, axis=0)
+    sim = simulate(
+        system.pss, ocp.x[0], horizon=problem.tau_horizon, n_steps=n_int * refine,
+        u=u_steps, scheme=options.verify_scheme,
+        n_finite_elements=options.n_finite_elements, homotopy=options.homotopy,
+        relaxation=options.relaxation, nlp=options.nlp, throw=False,
+    )
+    idx = list(range(system.q_index.start, system.q_index.stop)) + list(
+        range(system.v_index.start, system.v_index.stop)) + [system.clock_index]
+    if not sim.success:
+        notes.append(f"re-simulation did not converge: {sim.message}")
+        deviation = float("inf")
+    else:
+        deviation = float(np.max(np.abs(sim.x[-1, idx] - ocp.x[-1, idx])))
+    gaps = np.asarray(cls.function("gaps")(ocp.x[:, system.q_index].T)).T
+    stage_q = ocp.x_stages.reshape(-1, system.n_y)[:, system.q_index]
+    stage_gaps = np.asarray(cls.function("gaps")(stage_q.T)).T
+    min_gap = float(min(gaps.min(), stage_gaps.min()))
+
+    # Contact impulses from the momentum balance in physical time.
+    t = physical.t
+    q = physical.q
+    v = physical.v
+    n_u = cls.n_u
+    interval = np.clip(np.searchsorted(ocp.t_intervals, ocp.t[physical.index], side="right") - 1,
+                       0, n_int - 1)
+    u = ocp.u[interval, :n_u]
+    mass = cls.function("mass")
+    forces = cls.function("forces")
+    normals = cls.function("normals")
+    tangents = [cls.function(f"tangents_{i}") for i in range(cls.n_contacts)]
+
+    def jac(qk: np.ndarray) -> np.ndarray:
+        cols = []
+        nrm = np.asarray(normals(qk))
+        for i in range(cls.n_contacts):
+            cols.append(nrm[:, i : i + 1])
+            if cls.contacts[i].n_tangents:
+                cols.append(np.asarray(tangents[i](qk)))
+        return np.hstack(cols)
+
+    impulses, fit = contact_impulses(
+        t, q, v, u,
+        mass_matrix=lambda qk: np.asarray(mass(qk)),
+        smooth_force=lambda qk, vk, uk: np.asarray(forces(qk, vk, uk)).reshape(-1),
+        contact_jacobian=jac,
+    )
+    cone = friction_cone_violation(impulses, [c.mu for c in cls.contacts],
+                                   [c.n_tangents for c in cls.contacts])
+    # Impulses are meaningful only where a contact is closed; away from contact the
+    # least-squares fit only measures the discretisation error of the free flight.
+    monotone, clock_error = clock_checks(ocp.x[:, system.clock_index], problem.horizon,
+                                         options.clock_tolerance)
+    if np.max(fit, initial=0.0) > 10 * options.cone_tolerance:
+        notes.append(f"momentum balance not explained by contacts up to {np.max(fit):.2e} N s")
+    tolerances = {"end_state": options.end_state_tolerance, "gap": options.gap_tolerance,
+                  "cone": options.cone_tolerance, "clock": options.clock_tolerance}
+    passed = (deviation <= options.end_state_tolerance and min_gap >= -options.gap_tolerance
+              and cone <= options.cone_tolerance and monotone
+              and clock_error <= options.clock_tolerance)
+    return Verification(
+        passed=bool(passed),
+        method=(f"FESD re-simulation, {n_int * refine} steps x {options.n_finite_elements} "
+                f"elements, {options.verify_scheme!r}"),
+        end_state_deviation=deviation, min_gap=min_gap, friction_cone_violation=cone,
+        clock_monotone=monotone, clock_end_error=clock_error, tolerances=tolerances,
+        notes=tuple(notes),
+    )
+
+
+def solve_contact(
+    problem: ContactProblem,
+    options: ContactSolverOptions | None = None,
+    *,
+    verbose: bool = True,
+    throw: bool = False,
+) -> ContactResult:
+    """Solve a contact OCP with time-freezing + FESD + MPCC homotopy, then verify it.
+
+    Main args:
+        problem: the `ContactProblem`.
+        options: discretisation, homotopy and verification settings.
+
+    Other args:
+        verbose: one line per homotopy step and the summary.
+        throw: raise `SolveFailed` (with the result) unless the plan succeeded.
+
+    Returns:
+        A `ContactResult`; `success` only if the homotopy converged and the plan passed
+        the independent checks.
+    """
+    options = options if options is not None else ContactSolverOptions()
+    start = time.perf_counter()
+    ocp_problem, system = _transcribe(problem)
+    transcription = Transcription(scheme=options.scheme,
+                                  n_finite_elements=options.n_finite_elements,
+                                  method=options.method)
+    result = solve(ocp_problem, discretization=transcription, relaxation=options.relaxation,
+                   homotopy=options.homotopy, nlp=options.nlp, verbose=verbose, throw=False)
+    solved = time.perf_counter()
+    physical = to_physical_time(system, result.t, result.x)
+    verification = verify_plan(problem, system, result, physical, options)
+    done = time.perf_counter()
+    n_u = system.u.numel() - 1
+    contact = ContactResult(
+        problem=problem, system=system, ocp=result, tau=result.t, y=result.x,
+        u=result.u[:, :n_u], speed_of_time=result.u[:, n_u], physical=physical,
+        verification=verification,
+        timings={"build": result.build_time, "solve": result.solve_time,
+                 "verify": done - solved, "total": done - start},
+    )
+    if verbose:
+        print(contact.summary(), flush=True)
+    if throw and not contact.success:
+        raise SolveFailed(contact.message, contact)
+    if result.status is MpccStatus.NLP_FAILED and verbose:
+        print(f"IPOPT: {result.ipopt_status}", flush=True)
+    return contact
