@@ -47,6 +47,35 @@ def frozen_duration(restitution: float, stiffness: float) -> float:
     return math.pi / math.sqrt(stiffness - c**2 / 4.0)
 
 
+def normal_spring(
+    cls: ComplementarityLagrangianSystem, index: int, *, stiffness: float, damping: float
+) -> tuple[ca.SX, ca.SX]:
+    """The auxiliary spring-damper of contact `index` along its normal (module docstring).
+
+    (q', v') = (n v_n / (n^T n), M^{-1} n (-k f_c - c_d v_n) / D), with n, f_c, v_n and
+    D = n^T M^{-1} n of that contact: inside the obstacle (f_c, v_n) is a damped oscillator.
+    The clock row (0) is the caller's; a scene with several walls sums these fields.
+
+    Args:
+        cls: the CLS.
+        index: the contact.
+        stiffness: k [1/s^2 in numerical time], > 0.
+        damping: c_d [1/s], >= 0 (`elastic_damping(e, k)`).
+
+    Returns:
+        (q', v') as SX columns in `cls.q`, `cls.v`.
+    """
+    if not 0 <= index < cls.n_contacts:
+        raise InvalidInput(f"`index` must be in [0, {cls.n_contacts}), got {index!r}")
+    contact = cls.contacts[index]
+    normal = contact.normal
+    vn = cls.normal_velocity(index)
+    qdot = normal * vn / ca.sumsqr(normal)
+    vdot = cls.solve_mass(normal) * ((-stiffness * contact.gap - damping * vn)
+                                     / cls.delassus(index))
+    return qdot, vdot
+
+
 @dataclass(frozen=True)
 class Elastic:
     """Elastic impacts with restitution from the contact; Stewart form, one contact.
@@ -91,11 +120,8 @@ class Elastic:
         n = cls.n_q
         t = ca.SX.sym("t")
         y = ca.vertcat(cls.q, cls.v, t)
-        normal = contact.normal
-        vn = cls.normal_velocity(0)
         f_ode = ca.vertcat(cls.v, cls.acceleration, 1)
-        qdot = normal * vn / ca.sumsqr(normal)
-        vdot = cls.solve_mass(normal) * ((-k * contact.gap - c_d * vn) / cls.delassus(0))
+        qdot, vdot = normal_spring(cls, 0, stiffness=k, damping=c_d)
         f_aux = ca.vertcat(qdot, vdot, 0)
         modes = ca.horzcat(f_ode, f_aux)
         state_names = (*cls.q_names, *cls.v_names, "t")
