@@ -119,6 +119,8 @@ def test_incompatible_methods_are_rejected():
         time_freeze(point_mass(2, mu=0.2, restitution=0.5))
     with pytest.raises(InvalidInput, match=r"`stiffness` must be a finite number > 0"):
         Elastic(stiffness=-1.0)
+    with pytest.raises(InvalidInput, match=r"`normal_switching` must be 'separate' or 'max'"):
+        Inelastic(normal_switching="min")
     with pytest.raises(InvalidInput, match="`cls` must be a ComplementarityLagrangianSystem"):
         time_freeze("ball")
 
@@ -521,33 +523,47 @@ def test_flat_rod_hits_with_both_ends_at_once():
     np.testing.assert_allclose(impact.normal_impulse, G * t1 / 2, rtol=1e-6)  # m v / 2 each
 
 
-@pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    raises=SolveFailed,
-    reason="FESD step containing the lift-off fails (IPOPT Infeasible_Problem_Detected at "
-    "sigma = 1e-9): the exit from the contact sliding mode is tangential (phi crosses 0 "
-    "linearly, v_n ~ (t - 1/2)^2), a degenerate switch; same with L1/Linf relaxations, "
-    "cross complementarity per element, gamma_h = 0.5, max_iter 3000, a_n in {g, 10, 20}",
-)
-def test_contact_breaks_when_a_growing_force_beats_gravity():
-    """A frictionless particle slides at v_x = 1 on the ground under u_z = 2 g q_x: the
-    force grows linearly in time and lifts it off at t = 1/2; then z = g (t - 1/2)^3 / 3."""
+def _lifting_particle():
     q = ca.SX.sym("q", 2)
     v = ca.SX.sym("v", 2)
-    cls = Cls(q=q, v=v, u=ca.SX(0, 1), mass_matrix=np.eye(2),
-              forces=ca.vertcat(0, -G + 2 * G * q[0]),
-              contacts=(Contact(gap=q[1], a_n=10.0),))
-    tf = time_freeze(cls)
+    return Cls(q=q, v=v, u=ca.SX(0, 1), mass_matrix=np.eye(2),
+               forces=ca.vertcat(0, -G + 2 * G * q[0]),
+               contacts=(Contact(gap=q[1], a_n=10.0),))
+
+
+@pytest.mark.slow
+def test_contact_breaks_when_a_growing_force_beats_gravity():
+    """A frictionless particle slides at v_x = 1 on the ground under u_z = 2 g q_x: the
+    force grows linearly in time and lifts it off at t = 1/2; then z = g (t - 1/2)^3 / 3
+    and v_z = g (t - 1/2)^2. Needs the single switching function max(f_c, v_n)."""
+    tf = time_freeze(_lifting_particle(), method=Inelastic(normal_switching="max"))
     result, phys = sim(tf, tf.initial_state([0.0, 0.0], [1.0, 0.0]), horizon=1.2, n_steps=12,
                        n_finite_elements=3)
     t = phys.t
     assert not phys.impacts
-    z_exact = np.where(t > 0.5, G * (t - 0.5) ** 3 / 3, 0.0)
-    np.testing.assert_allclose(phys.y[:, 1], z_exact, atol=1e-6)
-    assert t[-1] > 0.7
-    lift = t[np.flatnonzero(phys.y[:, 1] > 1e-6)[0]]
-    assert 0.5 < lift < 0.5 + 0.1
+    assert t[-1] > 0.9
+    late = np.clip(t - 0.5, 0.0, None)
+    # measured 1.6e-4 m and 1.3e-4 relative: the lift-off is a tangential (degenerate)
+    # switch, timed to about 3e-5 s by the element holding it
+    np.testing.assert_allclose(phys.y[:, 1], G * late**3 / 3, atol=5e-4)
+    np.testing.assert_allclose(phys.y[-1, 3], G * late[-1] ** 2, rtol=5e-4)
+    np.testing.assert_allclose(phys.y[t < 0.45, 1], 0.0, atol=1e-9)  # still in contact
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    raises=SolveFailed,
+    reason="with the two switching functions (f_c, v_n) of [AUTO23] the FESD step holding "
+    "the lift-off fails (IPOPT Infeasible_Problem_Detected at sigma = 1e-9): the exit from "
+    "the contact sliding mode is tangential and the two step variables are not unique on "
+    "the contact surface; same with L1/Linf relaxations, cross complementarity per "
+    "element, gamma_h = 0.5, max_iter 3000, a_n in {g, 10, 20}",
+)
+def test_contact_breaks_with_separate_switching_functions():
+    tf = time_freeze(_lifting_particle())
+    sim(tf, tf.initial_state([0.0, 0.0], [1.0, 0.0]), horizon=1.2, n_steps=12,
+        n_finite_elements=3)
 
 
 @pytest.mark.slow

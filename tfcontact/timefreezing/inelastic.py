@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-from tfcontact.errors import IncompatibleOptions
+from tfcontact.errors import IncompatibleOptions, InvalidInput
 from tfcontact.fesd.system import HeavisideSystem
 from tfcontact.timefreezing.cls import ComplementarityLagrangianSystem
 from tfcontact.timefreezing.system import TimeFreezingSystem
@@ -59,7 +59,24 @@ class Inelastic:
     """Inelastic impacts (restitution 0) with Coulomb friction; Heaviside-step form.
 
     The gains a_n and eps_t are per contact (`Contact.a_n`, `Contact.eps_t`).
+
+    Args:
+        normal_switching: "separate" (default, [AUTO23]): two switching functions per
+            contact, c_q = f_c and c_vn = n^T v, with theta_ODE factor
+            alpha_q + alpha_vn - alpha_q alpha_vn; "max": one, c_qv = max(f_c, n^T v)
+            (nosnoc's `time_freezing_nonsmooth_switching_fun`), with factor alpha_qv.
+            R_1 = {c_qv > 0} and Q = {c_qv < 0} are the same regions, but on the contact
+            surface the step variable is unique (the separate pair is only determined
+            through its product), which the NLPs may prefer.
     """
+
+    normal_switching: str = "separate"
+
+    def __post_init__(self) -> None:
+        if self.normal_switching not in ("separate", "max"):
+            raise InvalidInput(
+                f"`normal_switching` must be 'separate' or 'max', got {self.normal_switching!r}"
+            )
 
     def build(self, cls: ComplementarityLagrangianSystem) -> TimeFreezingSystem:
         """The time-freezing PSS of `cls` (module docstring)."""
@@ -81,13 +98,21 @@ class Inelastic:
         for i, contact in enumerate(cls.contacts):
             name = contact.name
             normal = contact.normal
-            a_q = ca.SX.sym(f"alpha_q_{name}")
-            a_n = ca.SX.sym(f"alpha_vn_{name}")
-            switching += [contact.gap, cls.normal_velocity(i)]
-            alphas += [a_q, a_n]
-            alpha_names += [f"gap_{name}", f"vn_{name}"]
-            theta_ode = theta_ode * (a_q + a_n - a_q * a_n)
-            in_q = (1 - a_q) * (1 - a_n)
+            if self.normal_switching == "max":
+                a_qv = ca.SX.sym(f"alpha_qv_{name}")
+                switching.append(ca.fmax(contact.gap, cls.normal_velocity(i)))
+                alphas.append(a_qv)
+                alpha_names.append(f"gap_vn_{name}")
+                theta_ode = theta_ode * a_qv
+                in_q = 1 - a_qv
+            else:
+                a_q = ca.SX.sym(f"alpha_q_{name}")
+                a_n = ca.SX.sym(f"alpha_vn_{name}")
+                switching += [contact.gap, cls.normal_velocity(i)]
+                alphas += [a_q, a_n]
+                alpha_names += [f"gap_{name}", f"vn_{name}"]
+                theta_ode = theta_ode * (a_q + a_n - a_q * a_n)
+                in_q = (1 - a_q) * (1 - a_n)
             if not contact.has_friction:
                 push = cls.solve_mass(normal * contact.a_n)
                 aux_modes.append(ca.vertcat(zeros_q, push, 0))
@@ -128,6 +153,7 @@ class Inelastic:
             v_index=slice(n, 2 * n), modes=modes, weights=weights,
             region_names=tuple(region_names), cls=cls,
             info=(("alpha_names", tuple(alpha_names)),
+                  ("normal_switching", self.normal_switching),
                   ("a_n", tuple(c.a_n for c in cls.contacts)),
                   ("eps_t", tuple(c.eps_t for c in cls.contacts))),
         )
