@@ -15,7 +15,12 @@ stops while they act. Entry points:
 
 from tfcontact.timefreezing.builder import time_freeze
 from tfcontact.timefreezing.cls import Cls, ComplementarityLagrangianSystem, Contact
-from tfcontact.timefreezing.elastic import Elastic, elastic_damping, frozen_duration
+from tfcontact.timefreezing.elastic import (
+    Elastic,
+    elastic_damping,
+    frozen_duration,
+    normal_spring,
+)
 from tfcontact.timefreezing.from_robot import from_robot
 from tfcontact.timefreezing.hysteresis import VORONOI_POINTS, hysteresis_system, push_speed
 from tfcontact.timefreezing.inelastic import Inelastic
@@ -53,6 +58,7 @@ __all__ = [
     "from_robot",
     "frozen_duration",
     "hysteresis_system",
+    "normal_spring",
     "push_speed",
     "simulate_impacts",
     "time_freeze",
