@@ -11,7 +11,6 @@ from tfcontact.fesd import GaussLegendre, HeavisideSystem, Standard, StewartSyst
 from tfcontact.mpcc import Homotopy, L1Penalty, LinfPenalty, MpccStatus, Scholtes
 from tfcontact.ocp import Constraint, OptimalControlProblem, Transcription, build, solve
 
-
 TARGET = 1.5 * np.sqrt(2)
 OPTIMAL_COST = 7 - 3 * np.sqrt(2)
 OPTIMAL_U = [1, 2 * np.sqrt(2) - 1, 2 * np.sqrt(2) - 1, 2 * np.sqrt(2) - 1]
