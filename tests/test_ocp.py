@@ -146,6 +146,21 @@ def test_bad_problem_data_is_rejected():
         build(min_energy_problem(), discretization=Transcription(scheme="gauss"))
 
 
+def test_constraint_bounds_default_to_equality_or_one_sided():
+    x = ca.SX.sym("x", 2)
+    eq = Constraint(x)
+    np.testing.assert_array_equal(eq.lower, [0, 0])
+    np.testing.assert_array_equal(eq.upper, [0, 0])
+    low = Constraint(x, lower=1.0)
+    np.testing.assert_array_equal(low.upper, [np.inf, np.inf])
+    up = Constraint(x, upper=[1.0, 2.0])
+    np.testing.assert_array_equal(up.lower, [-np.inf, -np.inf])
+    with pytest.raises(InvalidInput, match=r"`lower\[1\]` = 3.0 exceeds `upper\[1\]` = 2.0"):
+        Constraint(x, lower=[0.0, 3.0], upper=[1.0, 2.0])
+    with pytest.raises(InvalidInput, match=r"`upper` has 3 entries, expected 2"):
+        Constraint(x, upper=[1.0, 2.0, 3.0])
+
+
 def test_trajectory_guess_is_interpolated_with_consistent_algebraic_variables():
     prob = min_energy_problem(x_guess=np.array([[-1.0], [0.5], [1.0], [2.0], [3.0]]),
                               u_guess=[1.0, 2.0, 2.0, 2.0])

@@ -53,7 +53,8 @@ class Constraint:
 
     Args:
         expression: SX column (n, 1).
-        lower, upper: bounds, arrays (n,) or scalars; default lower = upper = 0.
+        lower, upper: bounds, arrays (n,) or scalars. Neither given: the equality
+            expression = 0; only one given: the other side is unbounded.
     """
 
     expression: ca.SX
@@ -71,9 +72,11 @@ class Constraint:
         if expr.numel() and expr.shape[1] != 1:
             expr = ca.vec(expr)
         n = expr.numel()
-        lower = _bound_vector(self.lower, n, 0.0, "lower")
-        upper = _bound_vector(self.upper, n, 0.0, "upper") if self.upper is not None else (
-            lower.copy() if self.lower is not None else np.zeros(n))
+        if self.lower is None and self.upper is None:
+            lower, upper = np.zeros(n), np.zeros(n)
+        else:
+            lower = _bound_vector(self.lower, n, -np.inf, "lower")
+            upper = _bound_vector(self.upper, n, np.inf, "upper")
         if np.any(lower > upper):
             i = int(np.argmax(lower > upper))
             raise InvalidInput(f"`lower[{i}]` = {lower[i]} exceeds `upper[{i}]` = {upper[i]}")
