@@ -1,1 +1,8 @@
-"""tfcontact.scenes"""
+"""Reference problems and robot plans: data, closed forms and runnable plans.
+
+`PLANS` lists the robot plans of `tfcontact plan`; `run_plan` runs one.
+"""
+
+from tfcontact.scenes.plans import PLANS, Plan, PlanReport, run_plan
+
+__all__ = ["PLANS", "Plan", "PlanReport", "run_plan"]

@@ -1,0 +1,188 @@
+"""The hopper task of PROBLEMS.md TF-8 (nosbench HOPOCP), as data.
+
+q = (x, z, theta, l): base position, leg angle and leg length. The short task jumps
+from x = 0.1 to x_goal with one flight phase; the long task does two jumps. The
+reference is a cubic spline through the listed way points, sampled in physical time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from tfcontact.errors import InvalidInput
+
+
+@dataclass(frozen=True)
+class HopperTask:
+    """Data of one hopper task (TF-8); states are (q, v) in R^8.
+
+    Args:
+        name: "short" or "long" or "bench".
+        horizon: physical horizon T [s].
+        n_intervals: control intervals N.
+        mu: friction coefficient.
+        a_n: time-freezing auxiliary gain.
+        waypoints: states the reference spline passes through, equally spaced in time.
+        state_weights, terminal_weights, control_weights: least-squares weights.
+        lower, upper: state box (q, v).
+        control_bound: |u_i| <= control_bound for (hip torque [N m], leg force [N]).
+    """
+
+    name: str
+    horizon: float
+    n_intervals: int
+    mu: float
+    a_n: float
+    waypoints: tuple[tuple[float, ...], ...]
+    state_weights: tuple[float, ...]
+    terminal_weights: tuple[float, ...]
+    control_weights: tuple[float, ...]
+    lower: tuple[float, ...]
+    upper: tuple[float, ...]
+    control_bound: float = 50.0
+    n_finite_elements: int = 3
+    stages: int = 2
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if len(self.waypoints) < 2:
+            raise InvalidInput("`waypoints` needs at least a start and an end state")
+        for w in self.waypoints:
+            if len(w) != 8:
+                raise InvalidInput(f"each way point must have 8 entries (q, v), got {len(w)}")
+
+    @property
+    def x0(self) -> np.ndarray:
+        return np.asarray(self.waypoints[0], dtype=float)
+
+    @property
+    def x_end(self) -> np.ndarray:
+        return np.asarray(self.waypoints[-1], dtype=float)
+
+    def reference(self, t: np.ndarray) -> np.ndarray:
+        """The reference states at physical times t, shape (len(t), 8)."""
+        knots = np.linspace(0.0, self.horizon, len(self.waypoints))
+        spline = CubicSpline(knots, np.asarray(self.waypoints, dtype=float))
+        return spline(np.clip(np.asarray(t, dtype=float), 0.0, self.horizon))
+
+
+_Q = (50.0, 50.0, 20.0, 50.0, 0.1, 0.1, 0.1, 0.1)
+_Q_T = (300.0, 300.0, 300.0, 300.0, 0.1, 0.1, 0.1, 0.1)
+_ZERO_V = (0.0, 0.0, 0.0, 0.0)
+
+
+def hopper_task(name: str = "short") -> HopperTask:
+    """The TF-8 tasks: "short" (one jump, T = 1.5), "long" (two jumps, T = 2) and "bench"
+    (nosnoc_py's one-hop example: T = 1, x_goal = 1, mid height 1, Q = 100 on positions)."""
+    if name == "short":
+        return HopperTask(
+            name="short", horizon=1.5, n_intervals=20, mu=0.45, a_n=100.0,
+            waypoints=((0.1, 0.5, 0.0, 0.5) + _ZERO_V, (0.4, 0.8, 0.0, 0.1) + _ZERO_V,
+                       (0.7, 0.5, 0.0, 0.5) + _ZERO_V),
+            state_weights=_Q, terminal_weights=_Q_T, control_weights=(0.01, 0.01),
+            lower=(0.0, 0.0, -np.pi, 0.1, -10, -10, -5, -5),
+            upper=(0.8, 1.5, np.pi, 0.5, 10, 10, 5, 5),
+        )
+    if name == "long":
+        return HopperTask(
+            name="long", horizon=2.0, n_intervals=30, mu=1.0, a_n=25.0,
+            waypoints=((0.1, 0.5, 0.0, 0.5) + _ZERO_V, (0.4, 0.65, 0.0, 0.2) + _ZERO_V,
+                       (0.6, 0.5, 0.0, 0.5) + _ZERO_V, (0.9, 0.65, 0.0, 0.2) + _ZERO_V,
+                       (1.3, 0.5, 0.0, 0.5) + _ZERO_V),
+            state_weights=_Q, terminal_weights=_Q_T, control_weights=(0.001, 0.001),
+            lower=(0.0, 0.0, -np.pi, 0.1, -10, -10, -5, -5),
+            upper=(2.0, 1.5, np.pi, 0.5, 10, 10, 5, 5),
+        )
+    if name == "bench":
+        return HopperTask(
+            name="bench", horizon=1.0, n_intervals=20, mu=0.45, a_n=100.0,
+            waypoints=((0.1, 0.5, 0.0, 0.5) + _ZERO_V, (0.55, 1.0, 0.0, 0.1) + _ZERO_V,
+                       (1.0, 0.5, 0.0, 0.5) + _ZERO_V),
+            state_weights=(100.0, 100.0, 20.0, 50.0, 0.1, 0.1, 0.1, 0.1),
+            terminal_weights=_Q_T, control_weights=(0.01, 0.01),
+            lower=(0.0, 0.0, -np.pi, 0.1, -10, -10, -5, -5),
+            upper=(1.1, 1.5, np.pi, 0.5, 10, 10, 5, 5),
+        )
+    raise InvalidInput(f"unknown hopper task `{name}`; use `short`, `long` or `bench`")
+
+
+FOOT_RADIUS = 0.02  # [m], the collision sphere of robots/hopper.urdf
+
+
+def hopper_robot():
+    """The hopper of robots/hopper.urdf with the TF-8 coordinates q = (x, z, pitch, l).
+
+    The hip is locked so that the leg angle is the base pitch (theta = -pitch in TF-8's
+    sign convention); the ground is lowered by the foot radius so that the gap is TF-8's
+    point-foot gap z - l cos(pitch).
+    """
+    from tfcontact.robot import ContactSpec, Ground, load_robot
+
+    robot = load_robot("hopper", base="planar", locked_joints=("hip_joint",),
+                       contacts=(ContactSpec("foot", FOOT_RADIUS),))
+    return robot, Ground(height=-FOOT_RADIUS)
+
+
+def hopper_cls(robot, ground, task: HopperTask):
+    """The hopper's CLS: u = (hip torque on the leg angle [N m], leg force [N]).
+
+    As in TF-8 the hip torque acts on the leg angle directly (the body's attitude is not
+    modelled), here as a generalised force on the base pitch; the leg force is the
+    prismatic joint's force.
+    """
+    import casadi as ca
+
+    from tfcontact.timefreezing import ComplementarityLagrangianSystem
+    from tfcontact.timefreezing.from_robot import from_robot
+
+    leg = from_robot(robot, ground, mu=task.mu, a_n=task.a_n, actuated=("leg_joint",))
+    u = ca.SX.sym("u", 2)
+    pitch = ca.DM([0.0, 0.0, 1.0, 0.0])
+    forces = ca.substitute(leg.forces, leg.u, u[1]) + pitch * u[0]
+    return ComplementarityLagrangianSystem(
+        q=leg.q, v=leg.v, u=u, mass_matrix=leg.mass_matrix, forces=forces,
+        contacts=leg.contacts, q_names=("x", "z", "pitch", "l"),
+        v_names=("v_x", "v_z", "v_pitch", "v_l"), control_names=("u_hip", "u_leg"),
+    )
+
+
+def hopper_problem(task: HopperTask | str = "short"):
+    """The hopper OCP of TF-8 from the URDF: returns (robot, ground, ContactProblem).
+
+    The running cost tracks the reference spline evaluated at the *clock* t (piecewise
+    linear between the N + 1 control-grid samples: finer sampling only inflates the NLP)
+    with weights Q, plus R on the controls; the terminal cost Q_T pulls x(T) to the last
+    way point.
+    """
+    import casadi as ca
+
+    from tfcontact.ocp.contact import ContactProblem
+    from tfcontact.timefreezing import time_freeze
+
+    task = hopper_task(task) if isinstance(task, str) else task
+    robot, ground = hopper_robot()
+    cls = hopper_cls(robot, ground, task)
+    tf = time_freeze(cls)
+    y, u = tf.y, tf.u
+    x = ca.vertcat(y[tf.q_index], y[tf.v_index])
+    clock = y[tf.clock_index]
+    samples = np.linspace(0.0, task.horizon, task.n_intervals + 1)
+    reference = task.reference(samples)
+    x_ref = ca.vertcat(*[ca.pw_lin(clock, ca.DM(samples), ca.DM(reference[:, i]))
+                         for i in range(8)])
+    error = x - x_ref
+    running = (ca.mtimes([error.T, ca.diag(ca.DM(task.state_weights)), error])
+               + ca.mtimes([u.T, ca.diag(ca.DM(task.control_weights)), u]))
+    final_error = x - ca.DM(task.x_end)
+    terminal = ca.mtimes([final_error.T, ca.diag(ca.DM(task.terminal_weights)), final_error])
+    lower, upper = np.asarray(task.lower), np.asarray(task.upper)
+    problem = ContactProblem(
+        system=tf, q0=task.x0[:4], v0=task.x0[4:], horizon=task.horizon,
+        n_intervals=task.n_intervals, running_cost=running, terminal_cost=terminal,
+        u_lower=-task.control_bound, u_upper=task.control_bound,
+        q_lower=lower[:4], q_upper=upper[:4], v_lower=lower[4:], v_upper=upper[4:],
+    )
+    return robot, ground, problem
