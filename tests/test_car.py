@@ -176,3 +176,38 @@ def test_time_freezing_sliding_modes_are_the_car_modes(w, mode):
     sliding = 0.5 * (F[:, pair[0]] + F[:, pair[1]])
     expected = [v, p.acceleration(mode, u), p.fuel_rate(mode), 0.0, 1.0]
     np.testing.assert_allclose(sliding, expected, atol=1e-14)
+
+
+@pytest.mark.slow
+def test_time_freezing_fesd_plan_switches_at_the_thresholds():
+    from tfcontact.fesd import Fesd, GaussLegendre
+    from tfcontact.mpcc import Homotopy, Ipopt, Scholtes
+    from tfcontact.ocp import Transcription, solve
+    from tfcontact.scenes.car import time_optimal_ocp
+
+    n = 10
+    system, ocp = time_optimal_ocp(n)
+    res = solve(
+        ocp,
+        discretization=Transcription(scheme=GaussLegendre(2), n_finite_elements=3, method=Fesd()),
+        relaxation=Scholtes(),
+        homotopy=Homotopy(sigma_0=0.1, kappa=0.1, tolerance=1e-9),
+        nlp=Ipopt(tol=1e-9, max_iter=3000),
+        verbose=False,
+    )
+    x = res.x
+    w = x[:, system.memory_index]
+    up = np.flatnonzero(np.diff(w) > 1e-6)
+    down = np.flatnonzero(np.diff(w) < -1e-6)
+    # the memory moves (clock frozen) exactly where the automaton switches
+    assert x[up[0], 1] == pytest.approx(15.0, abs=1e-3)
+    assert x[down[0], 1] == pytest.approx(10.0, abs=1e-3)
+    assert np.ptp(x[up[0]:up[-1] + 2, system.clock_index]) < 1e-6
+    # switches are free in time: the continuous optimum 152/15 s is reached
+    t_final = res.x_intervals[-1, system.clock_index]
+    assert t_final == pytest.approx(152 / 15, abs=1e-3)
+    sim = simulate_car(res.u[:, 0], res.x_intervals[:, system.clock_index])
+    assert sim.terminal_error < 1e-2
+    # the MILP's switches sit on its grid: never faster, within one interval
+    milp = car_minimum_time_milp(n, bisection=Bisection(tolerance=1e-5))
+    assert t_final - 1e-3 <= milp.final_time <= t_final * (1 + 1 / n)

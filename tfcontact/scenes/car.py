@@ -28,8 +28,9 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from tfcontact.errors import InvalidInput
+from tfcontact.ocp import Constraint, OptimalControlProblem
 from tfcontact.timefreezing.hysteresis import hysteresis_system
-from tfcontact.timefreezing.system import TimeFreezingSystem
+from tfcontact.timefreezing.system import TimeFreezingSystem, with_speed_of_time
 
 NOMINAL = 0
 TURBO = 1
@@ -129,6 +130,55 @@ def time_freezing_system(problem: CarProblem = TF13) -> TimeFreezingSystem:
         push_gain=problem.push_gain,
         state_names=("q", "v", "L"),
         control_names=("u",),
+    )
+
+
+def time_optimal_ocp(
+    n_intervals: int,
+    problem: CarProblem = TF13,
+    *,
+    numerical_horizon: float = 5.0,
+    speed_of_time: tuple[float, float] = (0.1, 100.0),
+) -> tuple[TimeFreezingSystem, OptimalControlProblem]:
+    """The time-optimal OCP of the time-freezing car with a speed of time per stage.
+
+    min t(T_num) s.t. y' = s F(y, u) theta (the time-freezing PSS with speed of time s),
+    |u| <= u_max, s_k in `speed_of_time`, v in [v_min, v_max] at every grid and stage
+    point, q(T_num) = q_goal, v(T_num) = v_goal. The physical horizon is free (the
+    terminal clock is the cost); the physical control grid is the clock at the stage
+    boundaries, not equidistant (nosnoc's stage-wise clock constraint t_k = k T_phys/N
+    needs a global variable T_phys, which `OptimalControlProblem` does not have).
+    Control guess: u = u_max on the first half of the stages, -u_max after; s = 1.
+
+    Args:
+        n_intervals: N control stages.
+        problem: the car data.
+        numerical_horizon: T_num [s of numerical time].
+        speed_of_time: (s_min, s_max) [-], the paper's (0.1, 100).
+
+    Returns:
+        (the time-freezing system with speed of time, the `OptimalControlProblem`).
+    """
+    if not 0 < speed_of_time[0] < speed_of_time[1]:
+        raise InvalidInput(f"`speed_of_time` must be (s_min, s_max), 0 < s_min < s_max, "
+                           f"got {speed_of_time}")
+    system = with_speed_of_time(time_freezing_system(problem))
+    y = system.y
+    n = n_intervals
+    u_guess = np.array([[problem.u_max if k < n / 2 else -problem.u_max, 1.0] for k in range(n)])
+    inf = np.inf
+    return system, OptimalControlProblem(
+        system=system.pss,
+        x0=system.initial_state([0.0, 0.0, 0.0], 0.0),
+        horizon=numerical_horizon,
+        n_intervals=n,
+        mayer=y[system.clock_index],
+        u_lower=[-problem.u_max, speed_of_time[0]],
+        u_upper=[problem.u_max, speed_of_time[1]],
+        x_lower=[-inf, problem.v_min, -inf, -inf, -inf],
+        x_upper=[inf, problem.v_max, inf, inf, inf],
+        terminal=Constraint(ca.vertcat(y[0] - problem.q_goal, y[1] - problem.v_goal)),
+        u_guess=u_guess,
     )
 
 
