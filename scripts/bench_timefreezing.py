@@ -201,38 +201,51 @@ def convergence(out_dir: Path) -> list[str]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import ScalarFormatter
 
     steps = [4, 8, 16, 32]
-    lines = ["| method | N | error | seconds | NLPs |", "|---|---|---|---|---|"]
+    lines = ["| method | N | error | seconds | NLPs | converged |", "|---|---|---|---|---|---|"]
+    series = (("FESD", None, None), ("Standard", Standard(), None),
+              ("FESD, l1 penalty", None, L1Penalty()), ("Standard, l1 penalty", Standard(),
+                                                        L1Penalty()))
     data = {}
-    for name, method in (("FESD", None), ("Standard", Standard())):
-        errs, secs = [], []
+    for name, method, relaxation in series:
+        points = []
         for n in steps:
-            res, seconds, err, _ = tfcontact_a(method=method, n_steps=n, n_fe=2, a_n=10.0,
-                                               horizon=1.6)
-            status = "" if res.success else f" ({res.status.name})"
-            lines.append(f"| {name}{status} | {n} | {err:.2e} | {seconds:.2f} | {res.n_nlps} |")
-            errs.append(err)
-            secs.append(seconds)
-        data[name] = (np.array(errs), np.array(secs))
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
-    h = 1.6 / np.array(steps)
-    for name, (errs, secs) in data.items():
-        axes[0].loglog(h, errs, "o-", label=name)
-        axes[1].loglog(secs, errs, "o-", label=name)
-    axes[0].set_xlabel("step h [s, numerical time]")
+            res, seconds, err, _ = tfcontact_a(relaxation, method=method, n_steps=n, n_fe=2,
+                                               a_n=10.0, horizon=1.6)
+            lines.append(f"| {name} | {n} | {err:.2e} | {seconds:.2f} | {res.n_nlps} | "
+                         f"{'yes' if res.success else 'NO (' + res.status.name + ')'} |")
+            points.append((1.6 / n, seconds, err, res.success))
+        data[name] = np.array(points)
+    fig, axes = plt.subplots(1, 2, figsize=(9.5, 3.8))
+    for (name, *_), color in zip(series, ("C0", "C1", "C2", "C3"), strict=True):
+        pts = data[name]
+        ok = pts[:, 3] > 0
+        style = "--" if "l1" in name else "-"
+        axes[0].loglog(pts[ok, 0], pts[ok, 2], "o" + style, color=color, label=name)
+        axes[1].loglog(pts[ok, 1], pts[ok, 2], "o" + style, color=color, label=name)
+        if np.any(~ok):
+            axes[0].loglog(pts[~ok, 0], pts[~ok, 2], "x", color=color, ms=9)
+            axes[1].loglog(pts[~ok, 1], pts[~ok, 2], "x", color=color, ms=9)
+    axes[0].set_xlabel("step h [s of numerical time] (x: step failed)")
     axes[1].set_xlabel("CPU time [s]")
     for ax in axes:
         ax.set_ylabel("terminal error (max norm)")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend()
-    fig.suptitle("Particle dropped with friction (mu = 0.2, a_n = 10): FESD vs Standard, "
-                 "Radau IIA(2), 2 FE/step", fontsize=9)
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.xaxis.set_minor_formatter(plt.NullFormatter())
+    axes[0].legend(fontsize=7)
+    fig.suptitle("Particle dropped with friction (mu = 0.2, a_n = 10, T = 1.6): FESD vs "
+                 "Standard, Radau IIA(2), 2 FE per step", fontsize=9)
     fig.tight_layout()
     path = out_dir / "timefreezing_convergence.png"
     fig.savefig(path, dpi=120)
     lines.append("")
-    lines.append(f"Chart: `{path.name}`.")
+    lines.append(f"Chart: `{path.name}`. FESD's error stops at a floor set by the "
+                 "complementarity tolerance (the clock creeps while frozen, see "
+                 "`physical.FROZEN_RATE_TOL`), lower with the l1 penalty; the Standard "
+                 "discretisation stalls at 5e-3 (its switch times are bound to the fixed grid).")
     return lines
 
 
