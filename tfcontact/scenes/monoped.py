@@ -1,0 +1,163 @@
+"""The monoped (Capler leg) task of PROBLEMS.md TF-9, [AUTO23] section 6, as data.
+
+The robot is the project's URDF `robots/monoped.urdf` on a planar x-z base:
+q = (q_x, q_z, phi_hip, phi_knee), controls u = (hip torque, knee torque) [N m].
+The task: start standing at q0 = (0, 0.4, 0, 0), reach q(T) = (3, 0.4, 0, 0) in T = 2.5 s,
+minimise int u^T u dt, never put the foot into one of the holes, modelled as ellipses
+in the x-z plane that the foot must stay outside of:
+
+    ((p_foot,x - x_c,k) / a)^2 + (p_foot,z / b)^2 >= 1,   a = 0.5 m, b = 0.1 m.
+
+TF-9 treats the foot as a point: the gap is p_foot,z. The URDF's foot is a sphere of
+radius 0.028 m on the frame `foot`, so the contact candidate is
+`ContactSpec("foot", 0.028)` against `Ground(height=-0.028)`, whose gap
+p_foot,z - 0.028 + 0.028 is exactly TF-9's.
+
+`monoped_problem(task)` returns the robot, its time-freezing system and the
+`ContactProblem` (tfcontact.ocp.contact), initialised as [AUTO23] does: zero controls and
+the start state at every node (no contact schedule).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from tfcontact.errors import InvalidInput
+from tfcontact.ocp.contact import ContactProblem
+from tfcontact.ocp.problem import Constraint
+from tfcontact.robot import ContactSpec, Ground, Robot, load_robot
+from tfcontact.timefreezing import TimeFreezingSystem, from_robot, time_freeze
+
+FOOT_RADIUS = 0.028
+"""Radius of the URDF's foot sphere [m]; the ground is lowered by it (point-foot gap)."""
+
+
+@dataclass(frozen=True)
+class MonopedTask:
+    """Data of a TF-9 task (defaults: the [AUTO23] version).
+
+    Args:
+        horizon: physical horizon T [s].
+        n_intervals: control intervals N.
+        q0: start configuration (q_x [m], q_z [m], phi_hip [rad], phi_knee [rad]).
+        q_goal: terminal configuration, imposed as an equality.
+        holes: centres x_c,k [m] of the elliptic holes.
+        hole_half_width, hole_depth: the ellipse semi-axes a, b [m].
+        control_bound: |u_i| <= control_bound [N m].
+        mu: Coulomb friction coefficient; a_n: time-freezing auxiliary gain [1/s^2].
+        speed_of_time: (s_min, s_max).
+        stagewise_clock: t = k T / N at every control-interval boundary (else only at T).
+        hole_form: "ellipse": ((p_x - x_c)/a)^2 + (p_z/b)^2 >= 1 (TF-9); "bump":
+            p_z >= b (1 - ((p_x - x_c)/a)^2), the parabola under the ellipse's top half,
+            whose gradient in p_z never vanishes (the ellipse's does at p_z = 0, where a
+            foot on the ground at a hole's edge gets stuck in a locally infeasible point).
+    """
+
+    horizon: float = 2.5
+    n_intervals: int = 20
+    q0: tuple[float, float, float, float] = (0.0, 0.4, 0.0, 0.0)
+    q_goal: tuple[float, float, float, float] = (3.0, 0.4, 0.0, 0.0)
+    holes: tuple[float, ...] = (0.5, 1.5, 2.5)
+    hole_half_width: float = 0.5
+    hole_depth: float = 0.1
+    control_bound: float = 60.0
+    mu: float = 0.8
+    a_n: float = 200.0
+    speed_of_time: tuple[float, float] = (1.0, 25.0)
+    stagewise_clock: bool = True
+    hole_form: str = "ellipse"
+
+    def __post_init__(self) -> None:
+        if self.hole_form not in ("ellipse", "bump"):
+            raise InvalidInput(f"`hole_form` must be 'ellipse' or 'bump', got {self.hole_form!r}")
+        for name in ("q0", "q_goal"):
+            if len(getattr(self, name)) != 4:
+                raise InvalidInput(
+                    f"`{name}` must be (q_x, q_z, phi_hip, phi_knee), got {getattr(self, name)!r}")
+        for name in ("horizon", "hole_half_width", "hole_depth", "control_bound", "a_n"):
+            if not getattr(self, name) > 0:
+                raise InvalidInput(f"`{name}` must be positive, got {getattr(self, name)!r}")
+
+
+REDUCED_TASK = MonopedTask(horizon=1.0, n_intervals=10, q_goal=(1.0, 0.4, 0.0, 0.0),
+                           holes=(0.5,), hole_half_width=0.25, hole_form="bump",
+                           speed_of_time=(1.0, 5.0), stagewise_clock=False)
+"""A reduced task for tests: one hole (x in [0.25, 0.75]), T = 1 s, N = 10."""
+
+
+@dataclass(frozen=True, eq=False)
+class MonopedProblem:
+    """The loaded robot, its time-freezing system, the OCP and the kinematic functions.
+
+    Attributes:
+        task: the `MonopedTask`.
+        robot: the loaded `Robot` (with the foot contact candidate).
+        ground: the `Ground` (lowered by the foot radius).
+        system: `time_freeze(from_robot(robot, ground, mu, a_n))`.
+        problem: the `ContactProblem`.
+        knee, foot: CasADi functions q -> (x, z) of the knee and foot centre [m].
+    """
+
+    task: MonopedTask
+    robot: Robot
+    ground: Ground
+    system: TimeFreezingSystem
+    problem: ContactProblem
+    knee: ca.Function
+    foot: ca.Function
+
+    def hole_values(self, q: np.ndarray) -> np.ndarray:
+        """((p_x - x_c) / a)^2 + (p_z / b)^2 - 1 per hole at configurations q (n, 4) -> (n, k);
+        >= 0 outside the holes."""
+        p = np.asarray(self.foot(np.atleast_2d(q).T)).T
+        a, b = self.task.hole_half_width, self.task.hole_depth
+        return np.stack([((p[:, 0] - c) / a) ** 2 + (p[:, 1] / b) ** 2 - 1.0
+                         for c in self.task.holes], axis=1).reshape(len(p), -1)
+
+
+def monoped_problem(task: MonopedTask | None = None) -> MonopedProblem:
+    """Build TF-9's OCP for the project's monoped URDF.
+
+    State bounds ([AUTO23] section 6): q_x >= -0.05, 0.2 <= q_z <= 0.55,
+    |phi_hip| <= 3 pi / 8, |phi_knee| <= pi / 2. Path constraints at every stage point:
+    p_foot,x, p_knee,x >= -0.05; p_knee,z >= 0.05; -0.005 <= p_foot,z <= 0.2; the holes.
+    Terminal constraint q(T) = q_goal; cost int u^T u dt (physical time).
+    """
+    task = task if task is not None else MonopedTask()
+    robot = load_robot("monoped", base="planar_xz",
+                       contacts=(ContactSpec("foot", FOOT_RADIUS),))
+    ground = Ground(height=-FOOT_RADIUS)
+    cls = from_robot(robot, ground, mu=task.mu, a_n=task.a_n)
+    system = time_freeze(cls)
+    q_sym = robot.twin.q
+    knee = ca.Function("knee", [q_sym], [robot.twin.frame_position("shank")[[0, 2]]])
+    foot = ca.Function("foot", [q_sym], [robot.twin.frame_position("foot")[[0, 2]]])
+    y, u = system.y, system.u
+    q = y[system.q_index]
+    p_knee = knee(q)
+    p_foot = foot(q)
+    a, b = task.hole_half_width, task.hole_depth
+    if task.hole_form == "ellipse":
+        holes = [((p_foot[0] - c) / a) ** 2 + (p_foot[1] / b) ** 2 for c in task.holes]
+        hole_lower = [1.0] * len(holes)
+    else:
+        holes = [p_foot[1] - b * (1 - ((p_foot[0] - c) / a) ** 2) for c in task.holes]
+        hole_lower = [0.0] * len(holes)
+    path_expr = ca.vertcat(p_foot[0], p_knee[0], p_knee[1], p_foot[1], *holes)
+    path_lower = [-0.05, -0.05, 0.05, -0.005] + hole_lower
+    path_upper = [np.inf, np.inf, np.inf, 0.2] + [np.inf] * len(holes)
+    problem = ContactProblem(
+        system=system, q0=np.array(task.q0), v0=np.zeros(4), horizon=task.horizon,
+        n_intervals=task.n_intervals, running_cost=ca.sumsqr(u),
+        u_lower=-task.control_bound, u_upper=task.control_bound,
+        q_lower=[-0.05, 0.2, -3 * np.pi / 8, -np.pi / 2],
+        q_upper=[np.inf, 0.55, 3 * np.pi / 8, np.pi / 2],
+        speed_of_time=task.speed_of_time, stagewise_clock=task.stagewise_clock,
+        path=Constraint(path_expr, path_lower, path_upper),
+        terminal=Constraint(q, np.array(task.q_goal), np.array(task.q_goal)),
+    )
+    return MonopedProblem(task=task, robot=robot, ground=ground, system=system,
+                          problem=problem, knee=knee, foot=foot)
