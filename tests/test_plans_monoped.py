@@ -1,0 +1,64 @@
+"""TF-9 monoped (tfcontact.scenes.monoped): problem data and a reduced end-to-end plan.
+
+The reduced plan (one hole, T = 1 s, N = 10, Radau IIA with 2 stages, N_FE = 3) starts
+from the start-everywhere guess (zero controls, y0 at every node): the solver must find
+a hop over the hole by itself.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tfcontact.errors import InvalidInput
+from tfcontact.fesd import RadauIIA
+from tfcontact.ocp.contact import ContactSolverOptions, solve_contact
+from tfcontact.scenes.monoped import FOOT_RADIUS, REDUCED_TASK, MonopedTask, monoped_problem
+
+
+def test_gap_is_tf9_point_foot_gap():
+    """Sphere of radius r on ground lowered by r: the gap is p_foot,z of TF-9's kinematics."""
+    mp = monoped_problem(REDUCED_TASK)
+    rng = np.random.default_rng(3)
+    gaps = mp.system.cls.function("gaps")
+    for _ in range(5):
+        q = np.array([rng.uniform(-1, 1), rng.uniform(0.2, 0.6), *rng.uniform(-1.2, 1.2, 2)])
+        p_knee_z = q[1] - 0.2 * np.cos(q[2])
+        p_foot_z = p_knee_z - 0.2 * np.cos(q[2] + q[3])
+        assert float(gaps(q)) == pytest.approx(p_foot_z, abs=1e-12)
+        foot = np.asarray(mp.foot(q)).reshape(-1)
+        assert foot[0] == pytest.approx(q[0] - 0.2 * np.sin(q[2]) - 0.2 * np.sin(q[2] + q[3]))
+    assert mp.ground.height == -FOOT_RADIUS
+
+
+def test_hole_values_sign():
+    """Outside the ellipse >= 0, inside < 0 (foot straight under the hip at q_x)."""
+    mp = monoped_problem(MonopedTask(holes=(0.5,)))
+    stand = lambda x: np.array([[x, 0.4, 0.0, 0.0]])  # noqa: E731
+    assert mp.hole_values(stand(0.5))[0, 0] == pytest.approx(-1.0)
+    assert mp.hole_values(stand(1.2))[0, 0] > 0
+
+
+def test_bad_task():
+    with pytest.raises(InvalidInput, match="`q_goal` must be"):
+        MonopedTask(q_goal=(1.0, 0.4))
+    with pytest.raises(InvalidInput, match="`hole_form` must be"):
+        MonopedTask(hole_form="box")
+
+
+@pytest.mark.slow
+def test_reduced_monoped_plan_hops_over_the_hole():
+    mp = monoped_problem(REDUCED_TASK)
+    options = ContactSolverOptions(scheme=RadauIIA(2), n_finite_elements=3)
+    result = solve_contact(mp.problem, options, verbose=False)
+    assert result.success, result.message
+    # Reaches its goal: the terminal constraint q(T) = q_goal, to the NLP tolerance.
+    assert np.max(np.abs(result.y[-1, :4] - np.asarray(REDUCED_TASK.q_goal))) < 1e-6
+    # Leaves the ground: the gap opens by more than a centimetre somewhere.
+    q_all = np.concatenate([result.y[:, :4],
+                            result.ocp.x_stages.reshape(-1, result.y.shape[1])[:, :4]])
+    gaps = np.asarray(mp.system.cls.function("gaps")(q_all.T)).reshape(-1)
+    assert gaps.max() > 1e-2
+    # Avoids the hole at every element boundary and stage point, ellipse form (TF-9).
+    holes = mp.hole_values(q_all)
+    assert holes.min() >= -1e-6
