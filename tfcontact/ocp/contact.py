@@ -37,6 +37,7 @@ from tfcontact.ocp.verify import (
     friction_cone_violation,
 )
 from tfcontact.timefreezing import (
+    FROZEN_RATE_TOL,
     PhysicalTrajectory,
     TimeFreezingSystem,
     to_physical_time,
@@ -204,6 +205,7 @@ class ContactResult:
         physical: the `PhysicalTrajectory` (frozen pieces dropped, impacts as jumps).
         verification: the independent checks.
         timings: seconds by phase ("build", "solve", "verify").
+        options: the `ContactSolverOptions` it was solved with.
     """
 
     problem: ContactProblem
@@ -216,6 +218,7 @@ class ContactResult:
     physical: PhysicalTrajectory
     verification: Verification
     timings: dict[str, float]
+    options: ContactSolverOptions | None = None
 
     @property
     def success(self) -> bool:
@@ -322,9 +325,15 @@ def verify_plan(
         deviation = float("inf")
     else:
         deviation = float(np.max(np.abs(sim.x[-1, idx] - ocp.x[-1, idx])))
-    gaps = np.asarray(cls.function("gaps")(ocp.x[:, system.q_index].T)).T
-    stage_q = ocp.x_stages.reshape(-1, system.n_y)[:, system.q_index]
-    stage_gaps = np.asarray(cls.function("gaps")(stage_q.T)).T
+    # Gaps on the physical plan only: inside a frozen piece an elastic auxiliary spring
+    # runs *inside* the obstacle by construction (the clock stands still there).
+    gap_fn = cls.function("gaps")
+    clock = ocp.x[:, system.clock_index]
+    running = np.diff(clock) > FROZEN_RATE_TOL * np.diff(ocp.t)
+    gaps = np.asarray(gap_fn(physical.q.T)).T
+    stage_q = ocp.x_stages[running][:, :, system.q_index].reshape(-1, system.q_index.stop
+                                                                   - system.q_index.start)
+    stage_gaps = np.asarray(gap_fn(stage_q.T)).T if stage_q.size else gaps
     min_gap = float(min(gaps.min(), stage_gaps.min()))
 
     # Contact impulses from the momentum balance in physical time.
@@ -341,12 +350,15 @@ def verify_plan(
     tangents = [cls.function(f"tangents_{i}") for i in range(cls.n_contacts)]
 
     def jac(qk: np.ndarray) -> np.ndarray:
+        # Only closed contacts (gap within tolerance) can push: the columns of open ones
+        # are zero, so their impulses are 0 and opposite walls cannot cancel each other.
         cols = []
         nrm = np.asarray(normals(qk))
+        closed = np.asarray(gap_fn(qk)).ravel() <= options.gap_tolerance
         for i in range(cls.n_contacts):
-            cols.append(nrm[:, i : i + 1])
+            cols.append(nrm[:, i : i + 1] * closed[i])
             if cls.contacts[i].n_tangents:
-                cols.append(np.asarray(tangents[i](qk)))
+                cols.append(np.asarray(tangents[i](qk)) * closed[i])
         return np.hstack(cols)
 
     impulses, fit = contact_impulses(
@@ -415,7 +427,7 @@ def solve_contact(
     contact = ContactResult(
         problem=problem, system=system, ocp=result, tau=result.t, y=result.x,
         u=result.u[:, :n_u], speed_of_time=result.u[:, n_u], physical=physical,
-        verification=verification,
+        verification=verification, options=options,
         timings={"build": result.build_time, "solve": result.solve_time,
                  "verify": done - solved, "total": done - start},
     )
