@@ -280,6 +280,11 @@ class MpccSolver:
         if verbose:
             print(f"  {'NLP':>3} {'sigma':>9} {'iter':>5} {'objective':>12} "
                   f"{'residual':>9} {'time[s]':>8}  IPOPT", file=sys.stdout, flush=True)
+        # The last NLP that IPOPT solved: a failed NLP's iterate is no warm start for the
+        # next one, and the result reports the last solved iterate.
+        solved_x: np.ndarray | None = None
+        solved_lam: np.ndarray | None = None
+        failures_in_a_row = 0
         for k in range(homotopy.n_max):
             start = time.perf_counter()
             sol = self._solver(x0=x, p=np.concatenate([p, [sigma]]), lbx=self._lbx,
@@ -299,16 +304,27 @@ class MpccSolver:
                 print(f"  {k + 1:>3} {sigma:9.2e} {iterations:5d} {objective:12.5e} "
                       f"{residual:9.2e} {seconds:8.3f}  {ipopt_status}", flush=True)
             solved = ipopt_status in _IPOPT_SOLVED
-            if not solved:
-                status = MpccStatus.NLP_FAILED
-                # A failed relaxed NLP early in the homotopy can recover with a smaller sigma;
-                # give up only when the last allowed NLP fails.
-            else:
+            if solved:
                 status = MpccStatus.NOT_CONVERGED
-            if solved and residual <= homotopy.tolerance:
-                status = MpccStatus.CONVERGED
-                break
+                solved_x, solved_lam = x.copy(), lam_g
+                failures_in_a_row = 0
+                if residual <= homotopy.tolerance:
+                    status = MpccStatus.CONVERGED
+                    break
+            else:
+                # A failed relaxed NLP early in the homotopy can recover with a smaller
+                # sigma, warm started from the last solved iterate; two failures in a row
+                # end the homotopy.
+                status = MpccStatus.NLP_FAILED
+                failures_in_a_row += 1
+                if failures_in_a_row == 2:
+                    break
+                if solved_x is not None:
+                    x = solved_x.copy()
             sigma *= homotopy.kappa
+        if status is MpccStatus.NLP_FAILED and solved_x is not None:
+            x, lam_g = solved_x, solved_lam
+            residual, violation, objective = self.diagnostics(x[: self._n_w], p)
         if status is MpccStatus.CONVERGED and violation > feasibility_tol:
             status = MpccStatus.NLP_FAILED
         return MpccResult(
