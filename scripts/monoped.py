@@ -7,7 +7,7 @@ with FESD (Radau IIA, 3 stages, N_FE = 3), solves the MPCC homotopy from the
 start-everywhere initial guess (zero controls, every state at y0: no contact schedule)
 and checks the plan independently.
 
-Writes to `out/monoped/` (or `--out`): `plan.npz` + `plan.json` (trajectory file),
+Writes to `out/monoped/` (or `--out`): `trajectory.npz` + `trajectory.json`, `summary.json`,
 `replay.html` (standalone meshcat page), the standard figures and `path.png` (the foot
 and hip paths over the holes). With `--bench` it also writes `benchmarks/monoped.md`
 (results table) and `benchmarks/monoped.png`.
@@ -272,18 +272,13 @@ def main(argv: list[str] | None = None) -> int:
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     path_figure(mp, result, out / "path.png")
-    try:
-        traj = to_trajectory(mp, result)
-    except ImportError as err:  # tfcontact.viz.plan not there yet
-        print(f"no trajectory file: {err}")
-        traj = None
-    if traj is not None:
-        from tfcontact.viz import plot_trajectory, replay, save_trajectory
+    from tfcontact.viz import replay
+    from tfcontact.viz.plan import save_plan
 
-        save_trajectory(out / "plan.npz", traj)
-        plot_trajectory(traj, out, formats=("png",))
-        replay(traj, html=out / "replay.html")
-        print(f"wrote {out / 'plan.npz'}, {out / 'plan.json'}, {out / 'replay.html'}")
+    traj = to_trajectory(mp, result)
+    files = save_plan(result, traj, out)
+    replay(traj, html=out / "replay.html")
+    print(f"wrote {', '.join(str(f) for f in files)}, {out / 'replay.html'}, {out / 'path.png'}")
     if args.bench:
         bench = ROOT / "benchmarks"
         path_figure(mp, result, bench / "monoped.png")
