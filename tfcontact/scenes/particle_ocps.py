@@ -31,6 +31,8 @@ def box_circle_problem(
     max_force: float = 50.0,
     stiffness: float = 100.0,
     walls: tuple[float, float, float, float] = TF2_WALLS,
+    speed_of_time: tuple[float, float] = (1.0, 25.0),
+    numerical_horizon: float | None = None,
 ) -> ContactProblem:
     """The seed's 2-D ball in a box tracking a circle (PROBLEMS.md TF-2, the issue's form).
 
@@ -38,9 +40,10 @@ def box_circle_problem(
     q_ref = R (cos w t, sin w t), v_ref = q_ref' (`circle_reference`, evaluated at the
     clock t), T = periods 2 pi / |w| [s], ||u||^2 <= max_force^2, gravity off, elastic
     walls (e = 1, spring k = `stiffness`), starting on the circle: q0 = (R, 0),
-    v0 = (0, R w). Exact tracking needs the force R w^2 [N]: above `max_force` the ball
-    cannot follow the circle and turns on the walls (R = 1, 50 N: w = 3 pi needs 88.8 N),
-    below it the optimum (cost 0) touches no wall (w = pi: 9.9 N; w = 2 pi: 39.5 N).
+    v0 = (0, R w); the initial guess is the reference. Exact tracking needs the force
+    R w^2 [N]: above `max_force` the ball cannot follow the circle and turns on the walls
+    (R = 1, 50 N: w = 3 pi needs 88.8 N), below it the optimum (cost 0) touches no wall
+    (w = pi: 9.9 N; w = 2 pi: 39.5 N).
     """
     if not (math.isfinite(omega) and omega != 0):
         raise InvalidInput(f"`omega` must be a non-zero angular speed [rad/s], got {omega!r}")
@@ -51,10 +54,15 @@ def box_circle_problem(
     q, v = y[tf.q_index], y[tf.v_index]
     cost = (q[0] - qx) ** 2 + (q[1] - qy) ** 2 + (v[0] - vx) ** 2 + (v[1] - vy) ** 2
     horizon = periods * 2 * math.pi / abs(omega)
+    # initial guess: the reference itself at the interval boundaries
+    t_k = np.linspace(0.0, horizon, n_intervals + 1)
+    (gx, gy), (gvx, gvy) = circle_reference(t_k, radius=radius, omega=omega)
     return ContactProblem(
         system=tf, q0=[radius, 0.0], v0=[0.0, radius * omega], horizon=horizon,
         n_intervals=n_intervals, running_cost=cost,
         path=Constraint(ca.sumsqr(u), -np.inf, max_force**2),
+        guess=np.column_stack([gx, gy, gvx, gvy]),
+        speed_of_time=speed_of_time, numerical_horizon=numerical_horizon,
     )
 
 
@@ -67,6 +75,8 @@ def throwing_ball_problem(
     restitution: float = 0.9,
     stiffness: float = 10.0,
     terminal_weight: float = 100.0,
+    speed_of_time: tuple[float, float] = (1.0, 25.0),
+    numerical_horizon: float | None = None,
 ) -> ContactProblem:
     """TF-1: the throwing ball (elastic ground, e = 0.9, k_aux = 10).
 
@@ -84,6 +94,7 @@ def throwing_ball_problem(
         running_cost=ca.sumsqr(u), terminal_cost=terminal_weight * ca.sumsqr(v),
         path=Constraint(ca.sumsqr(u), -np.inf, max_force**2),
         terminal=Constraint(y[tf.q_index], target, target),
+        speed_of_time=speed_of_time, numerical_horizon=numerical_horizon,
     )
 
 

@@ -1,0 +1,114 @@
+"""TF-2: a ball in a box tracks a circle; too fast for its force, it turns on the walls.
+
+Solves the seed's 2-D ball OCP (PROBLEMS.md TF-2 box, elastic walls k = 100, e = 1,
+gravity off, ||u|| <= 50 N; track q_ref = R (cos w t, sin w t) over two periods;
+N = 25, N_FE = 3, Radau IIA order 3, l_inf penalty homotopy), verifies the plan by
+re-simulation and writes `trajectory.npz/.json`, figures in numerical and physical time,
+the path in the plane and `summary.json` into the output folder (default
+`out/ball_in_box_w<omega/pi>`). Exact tracking needs R w^2 N: w = pi (9.9 N) touches no
+wall; w = 3 pi (88.8 N, TF-2's value) must bounce.
+
+    python scripts/plan_ball_in_box.py --omega 1 [--out DIR] [--n-intervals N]   # w = pi
+    python scripts/plan_ball_in_box.py --omega 3                                 # w = 3 pi
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from tfcontact.fesd import RadauIIA
+from tfcontact.mpcc import LinfPenalty, Scholtes
+from tfcontact.ocp.contact import ContactSolverOptions, solve_contact
+from tfcontact.robot import ContactSpec, RobotSpec
+from tfcontact.scenes.ball_in_box import TF2_WALLS, circle_reference
+from tfcontact.scenes.particle_ocps import box_circle_problem
+from tfcontact.viz.plan import save_plan, trajectory_from_result
+
+RADIUS = 1.0
+BALL = RobotSpec(source="ball", base="planar_xz", contacts=(ContactSpec("ball", 0.05),))
+# (x, y) of the problem is (x, z) of the viewer; world normals of the walls (into the box)
+DIRECTIONS = [(np.array(n, float), np.zeros((3, 0)))
+              for n in ((0, 0, 1), (-1, 0, 0), (0, 0, -1), (1, 0, 0))]
+
+
+def scene() -> dict:
+    """Four wall slabs, 5 cm off the point-mass walls (the drawn ball has r = 5 cm)."""
+    b, r, t, left = TF2_WALLS
+    thick, r_ball = 0.05, 0.05
+    width, height = r + left + 2 * (r_ball + thick), t + b + 2 * (r_ball + thick)
+    cx, cz = (r - left) / 2, (t - b) / 2
+    return {"terrain": {"type": "none"}, "boxes": [
+        {"center": [cx, 0.0, -b - r_ball - thick / 2], "size": [width, 0.3, thick]},
+        {"center": [r + r_ball + thick / 2, 0.0, cz], "size": [thick, 0.3, height]},
+        {"center": [cx, 0.0, t + r_ball + thick / 2], "size": [width, 0.3, thick]},
+        {"center": [-left - r_ball - thick / 2, 0.0, cz], "size": [thick, 0.3, height]},
+    ]}
+
+
+def plot_path(result, omega: float, out: Path) -> Path:
+    """The path in the plane with the circle, the walls and the impacts."""
+    fig = Figure(figsize=(5.0, 5.0))
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    angle = np.linspace(0, 2 * np.pi, 200)
+    ax.plot(RADIUS * np.cos(angle), RADIUS * np.sin(angle), "k--", lw=1, label="reference")
+    q = result.physical.q
+    ax.plot(q[:, 0], q[:, 1], "-", lw=1.5, color="tab:blue", label="plan")
+    for imp in result.physical.impacts:
+        qi = imp.pre[result.system.q_index]
+        ax.plot(qi[0], qi[1], "o", color="tab:red", ms=5)
+    b, r, t, left = TF2_WALLS
+    ax.plot([-left, r, r, -left, -left], [-b, -b, t, t, -b], color="0.3", lw=2)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(fontsize="small", loc="center")
+    ax.set_title(f"w = {omega / math.pi:g} pi: {len(result.physical.impacts)} impact(s)")
+    fig.tight_layout()
+    path = out / "path.png"
+    fig.savefig(path, dpi=120)
+    return path
+
+
+def tracking_error(result, omega: float) -> float:
+    """max ||q - q_ref(t)|| [m] over the physical samples."""
+    (qx, qy), _ = circle_reference(result.physical.t, radius=RADIUS, omega=omega)
+    q = result.physical.q
+    return float(np.max(np.hypot(q[:, 0] - qx, q[:, 1] - qy)))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--omega", type=float, default=1.0, help="w / pi [-]")
+    parser.add_argument("--out", default=None, help="output folder")
+    parser.add_argument("--n-intervals", type=int, default=25, help="control intervals N")
+    parser.add_argument("--relaxation", choices=("linf", "scholtes"), default="linf")
+    parser.add_argument("--quiet", action="store_true", help="no homotopy progress lines")
+    args = parser.parse_args(argv)
+    omega = args.omega * math.pi
+    out = Path(args.out or f"out/ball_in_box_w{args.omega:g}")
+    problem = box_circle_problem(omega, radius=RADIUS, n_intervals=args.n_intervals)
+    options = ContactSolverOptions(
+        scheme=RadauIIA(2), n_finite_elements=3,
+        relaxation=LinfPenalty() if args.relaxation == "linf" else Scholtes())
+    result = solve_contact(problem, options, verbose=not args.quiet)
+    if args.quiet:
+        print(result.summary())
+    print(f"w = {args.omega:g} pi: {len(result.physical.impacts)} impact(s), max tracking "
+          f"error {tracking_error(result, omega):.3f} m")
+    traj = trajectory_from_result(result, BALL, scene(), directions=DIRECTIONS)
+    files = save_plan(result, traj, out)
+    files.append(plot_path(result, omega, out))
+    print(f"wrote {len(files)} files to {out}/")
+    return 0 if result.success else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
