@@ -280,11 +280,10 @@ class MpccSolver:
         if verbose:
             print(f"  {'NLP':>3} {'sigma':>9} {'iter':>5} {'objective':>12} "
                   f"{'residual':>9} {'time[s]':>8}  IPOPT", file=sys.stdout, flush=True)
-        # The last NLP that IPOPT solved: a failed NLP's iterate is no warm start for the
-        # next one, and the result reports the last solved iterate.
+        # The last NLP that IPOPT solved: if the homotopy ends on a failed NLP, the result
+        # reports that iterate rather than the failed one.
         solved_x: np.ndarray | None = None
         solved_lam: np.ndarray | None = None
-        failures_in_a_row = 0
         for k in range(homotopy.n_max):
             start = time.perf_counter()
             sol = self._solver(x0=x, p=np.concatenate([p, [sigma]]), lbx=self._lbx,
@@ -307,20 +306,14 @@ class MpccSolver:
             if solved:
                 status = MpccStatus.NOT_CONVERGED
                 solved_x, solved_lam = x.copy(), lam_g
-                failures_in_a_row = 0
                 if residual <= homotopy.tolerance:
                     status = MpccStatus.CONVERGED
                     break
             else:
-                # A failed relaxed NLP early in the homotopy can recover with a smaller
-                # sigma, warm started from the last solved iterate; two failures in a row
-                # end the homotopy.
+                # A failed relaxed NLP early in the homotopy often recovers with a smaller
+                # sigma, warm started from its own last iterate (measured: restarting from
+                # the last solved iterate instead made FESD simulation steps fail).
                 status = MpccStatus.NLP_FAILED
-                failures_in_a_row += 1
-                if failures_in_a_row == 2:
-                    break
-                if solved_x is not None:
-                    x = solved_x.copy()
             sigma *= homotopy.kappa
         if status is MpccStatus.NLP_FAILED and solved_x is not None:
             x, lam_g = solved_x, solved_lam
