@@ -203,6 +203,9 @@ def bench_markdown(mp: MonopedProblem, result: ContactResult, checks: dict, args
         "Times are wall-clock on a 2-core machine shared with other jobs: compare them "
         "only as ratios measured side by side.",
         "",
+        "Settings tried (relaxations, IPOPT barrier strategy, hole forms) and where the time "
+        "goes: [monoped_settings.md](monoped_settings.md).",
+        "",
         "![monoped](monoped.png)",
         "",
     ]
