@@ -179,6 +179,8 @@ class ContactSolverOptions:
         nlp: IPOPT settings.
         verify_refinement: the re-simulation uses this many steps per control interval.
         verify_scheme: the re-simulation's IRK scheme.
+        verify_relaxation: the re-simulation's relaxation (`L1Penalty()` needs one or two
+            NLPs per step where Scholtes needs one per decade of sigma).
         end_state_tolerance, gap_tolerance, cone_tolerance, clock_tolerance: the checks'
             tolerances (see `Verification`); `cone_tolerance` is relative to the largest
             normal impulse of the plan, because the impulses recovered from the discrete
@@ -193,6 +195,7 @@ class ContactSolverOptions:
     nlp: Ipopt = field(default_factory=lambda: Ipopt(tol=1e-8, max_iter=2000))
     verify_refinement: int = 4
     verify_scheme: Scheme = field(default_factory=lambda: RadauIIA(3))
+    verify_relaxation: Relaxation = field(default_factory=Scholtes)
     end_state_tolerance: float = 5e-2
     gap_tolerance: float = 1e-3
     cone_tolerance: float = 1e-2
@@ -339,7 +342,7 @@ def verify_plan(
         system.pss, ocp.x[0], horizon=problem.tau_horizon, n_steps=n_int * refine,
         u=u_steps, scheme=options.verify_scheme,
         n_finite_elements=options.n_finite_elements, homotopy=options.homotopy,
-        relaxation=options.relaxation, nlp=options.nlp, throw=False,
+        relaxation=options.verify_relaxation, nlp=options.nlp, throw=False,
     )
     idx = list(range(system.q_index.start, system.q_index.stop)) + list(
         range(system.v_index.start, system.v_index.stop)) + [system.clock_index]

@@ -40,11 +40,10 @@ class Plan:
 
 
 def _hopper(task: str | None):
-    from tfcontact.ocp.contact import ContactSolverOptions
-    from tfcontact.scenes.hopper import hopper_problem
+    from tfcontact.scenes.hopper import hopper_options, hopper_problem
 
     robot, ground, problem = hopper_problem(task or "short")
-    return robot, ground, problem, ContactSolverOptions()
+    return robot, ground, problem, hopper_options()
 
 
 PLANS: dict[str, Plan] = {
