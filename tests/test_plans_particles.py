@@ -1,0 +1,201 @@
+"""Contact OCPs with balls and particles (PROBLEMS.md TF-1, TF-2, TF-3), reduced for CI.
+
+Fast tests check the ball-in-box time-freezing system against closed forms; the slow
+ones solve reduced versions of the three OCPs end to end and require the independent
+verification (`ContactResult.success`) to pass.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from tfcontact.errors import InvalidInput
+from tfcontact.fesd import RadauIIA, simulate
+from tfcontact.mpcc import Homotopy, Ipopt, LinfPenalty
+from tfcontact.ocp.contact import ContactProblem, ContactSolverOptions, solve_contact
+from tfcontact.robot import ContactSpec, RobotSpec
+from tfcontact.scenes.ball_in_box import TF2_WALLS, WALLS, ball_in_box
+from tfcontact.scenes.particle_ocps import (
+    box_circle_problem,
+    particle_friction_problem,
+    throwing_ball_problem,
+)
+from tfcontact.viz import load_trajectory
+from tfcontact.viz.plan import save_plan, trajectory_from_result
+
+BALL = RobotSpec(source="ball", base="planar_xz", contacts=(ContactSpec("ball", 0.05),))
+
+
+# ---------------------------------------------------------------- the box, fast
+
+
+def _active_region(tf, q, v) -> str:
+    """The region whose indicator is smallest at (q, v, t = 0)."""
+    g = ca.Function("g", [tf.y], [tf.pss.indicators])(np.r_[q, v, 0.0])
+    return tf.region_names[int(np.argmin(np.asarray(g).ravel()))]
+
+
+@pytest.mark.parametrize(("q", "region"), [
+    ((0.0, 0.0), "interior"),
+    ((0.0, -1.06), "bottom"),
+    ((1.11, 0.0), "right"),
+    ((0.0, 1.16), "top"),
+    ((-1.21, 0.0), "left"),
+    ((1.11, -1.06), "bottom_right"),
+    ((1.11, 1.16), "right_top"),
+    ((-1.21, 1.16), "top_left"),
+    ((-1.21, -1.06), "left_bottom"),
+])
+def test_box_regions(q, region):
+    assert _active_region(ball_in_box(), np.array(q), np.zeros(2)) == region
+
+
+def test_box_modes_are_springs_along_the_wall_normals():
+    k = 100.0
+    tf = ball_in_box(stiffness=k)
+    modes = tf.function()
+    y = np.array([1.13, 0.2, 0.7, -0.4, 0.3])  # 3 cm inside the right wall
+    u = np.array([5.0, -3.0])
+    f = np.asarray(modes(y, u))
+    names = list(tf.region_names)
+    np.testing.assert_allclose(f[:, names.index("interior")], [0.7, -0.4, 5.0, -3.0, 1.0])
+    # right wall, gap = 1.10 - x: x' = v_x, v_x' = -k (x - 1.10) (e = 1: no damping)
+    np.testing.assert_allclose(f[:, names.index("right")], [0.7, 0, -k * 0.03, 0, 0],
+                               atol=1e-12)
+    np.testing.assert_allclose(f[:, names.index("bottom")], [0, -0.4, 0, -k * (0.2 + 1.05), 0],
+                               atol=1e-12)
+    corner = names.index("bottom_right")
+    np.testing.assert_allclose(
+        f[:, corner], f[:, names.index("right")] + f[:, names.index("bottom")])
+    assert tf.cls.n_contacts == 4
+    assert [c.name for c in tf.cls.contacts] == list(WALLS)
+
+
+@pytest.mark.slow
+def test_box_bounce_closed_form():
+    """A ball flying at 1 m/s into the right wall (e = 1) comes back at -1 m/s after a
+    frozen half period pi / sqrt(k) of numerical time (Radau IIA order 5: measured error
+    5e-8; order 3 gives 2e-4 and 2.5e-5 with twice the steps, the slope 3)."""
+    k = 100.0
+    tf = ball_in_box(stiffness=k)
+    tau_end = 0.6
+    sim = simulate(tf.pss, np.array([1.0, 0.0, 1.0, 0.0, 0.0]), horizon=tau_end, n_steps=12,
+                   u=np.zeros(2), scheme=RadauIIA(3), n_finite_elements=3)
+    frozen = math.pi / math.sqrt(k)
+    t_end = tau_end - frozen
+    x_end = 1.10 - (t_end - 0.1)
+    np.testing.assert_allclose(sim.x[-1], [x_end, 0.0, -1.0, 0.0, t_end], atol=1e-6)
+    assert sim.x[:, 0].max() > 1.10 + 0.09  # it went 1 / sqrt(k) = 0.1 m into the wall
+
+
+def test_box_bad_input():
+    with pytest.raises(InvalidInput, match="`walls` must be four positive"):
+        ball_in_box((1.0, -1.0, 1.0, 1.0))
+    with pytest.raises(InvalidInput, match="`stiffness` must be a finite number > 0"):
+        ball_in_box(stiffness=0.0)
+    with pytest.raises(InvalidInput, match="`restitution` must be in"):
+        ball_in_box(restitution=0.0)
+    with pytest.raises(InvalidInput, match="`omega` must be a non-zero"):
+        box_circle_problem(0.0)
+
+
+def test_contact_problem_guess_shape():
+    problem = box_circle_problem(math.pi, n_intervals=4)
+    assert problem.guess.shape == (5, 4)
+    with pytest.raises(InvalidInput, match=r"`guess` must be a finite array .* shape \(5, 4\)"):
+        ContactProblem(system=ball_in_box(), q0=[1, 0], v0=[0, 1], horizon=1.0,
+                       n_intervals=4, guess=np.zeros((4, 4)))
+
+
+# ---------------------------------------------------------------- reduced OCPs, slow
+
+
+def _box_options() -> ContactSolverOptions:
+    # started on the reference: a small sigma_0 keeps the relaxed NLP there
+    return ContactSolverOptions(scheme=RadauIIA(2), n_finite_elements=3,
+                                relaxation=LinfPenalty(),
+                                homotopy=Homotopy(sigma_0=1e-3, tolerance=1e-7))
+
+
+@pytest.mark.slow
+def test_box_slow_circle_touches_no_wall(tmp_path):
+    """w = pi: exact tracking needs 9.9 N < 50 N, the optimum touches no wall."""
+    problem = box_circle_problem(math.pi, n_intervals=8, periods=1.0)
+    result = solve_contact(problem, _box_options(), verbose=False)
+    assert result.success, result.message
+    assert result.physical.impacts == ()
+    assert result.verification.min_gap > 0.0
+    assert result.ocp.n_nlps == 1
+    assert result.ocp.cost < 0.1
+    # the plan's file: one robot contact (the ball) for four walls
+    traj = trajectory_from_result(result, BALL, {"terrain": {"type": "none"}})
+    assert traj.gap.shape == (traj.n_samples, 1)
+    assert traj.extras["cls_gaps"].shape == (traj.n_samples, 4)
+    np.testing.assert_allclose(traj.gap[:, 0], traj.extras["cls_gaps"].min(axis=1))
+    save_plan(result, traj, tmp_path)
+    loaded = load_trajectory(tmp_path / "trajectory.npz")
+    assert loaded.solver["nlp_count"] == result.ocp.n_nlps
+    assert loaded.verification["passed"] is True
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(reason="the elastic plan converges (impacts, target reached) but fails the "
+                   "independent verification: its impacts sit on control-interval boundaries "
+                   "and the re-simulation does not reproduce them", strict=True)
+def test_box_fast_circle_bounces():
+    """w = 3 pi: exact tracking needs 88.8 N > 50 N, the ball turns on the walls."""
+    problem = box_circle_problem(3 * math.pi, n_intervals=8, periods=1.0)
+    result = solve_contact(problem, _box_options(), verbose=False)
+    assert result.success, result.message
+    assert len(result.physical.impacts) >= 1
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(reason="the elastic plan converges (impacts, target reached) but fails the "
+                   "independent verification: its impacts sit on control-interval boundaries "
+                   "and the re-simulation does not reproduce them", strict=True)
+def test_throwing_ball_bounces_to_target():
+    problem = throwing_ball_problem(n_intervals=10)
+    options = ContactSolverOptions(scheme=RadauIIA(2), n_finite_elements=3,
+                                   relaxation=LinfPenalty())
+    result = solve_contact(problem, options, verbose=False)
+    assert result.ocp.success, result.message
+    assert len(result.physical.impacts) >= 1
+    np.testing.assert_allclose(result.y[-1, result.system.q_index], [4.0, 0.5], atol=1e-6)
+    assert result.success, result.message
+
+
+@pytest.mark.slow
+def test_particle_friction_reaches_target():
+    problem = particle_friction_problem(n_intervals=6)
+    options = ContactSolverOptions(scheme=RadauIIA(2), n_finite_elements=3,
+                                   relaxation=LinfPenalty())
+    result = solve_contact(problem, options, verbose=False)
+    assert result.success, result.message
+    tf = result.system
+    end = np.concatenate([result.y[-1, tf.q_index], result.y[-1, tf.v_index]])
+    np.testing.assert_allclose(end, [3.0, 0.0, 0.0, 0.0], atol=1e-6)
+    assert len(result.physical.impacts) == 1
+
+
+@pytest.mark.slow
+def test_unreachable_target_fails_with_reason():
+    """x = 30 m in 2 s with |u| <= 10 N is out of reach: a failed status with the reason."""
+    problem = particle_friction_problem((30.0, 0.0, 0.0, 0.0), n_intervals=4)
+    options = ContactSolverOptions(scheme=RadauIIA(2), n_finite_elements=3,
+                                   relaxation=LinfPenalty(), nlp=Ipopt(tol=1e-8, max_iter=200))
+    result = solve_contact(problem, options, verbose=False)
+    assert not result.success
+    assert result.status == "nlp_failed"
+    assert "IPOPT did not solve" in result.message
+    assert result.ocp.ipopt_status in ("Infeasible_Problem_Detected",
+                                       "Maximum_Iterations_Exceeded",
+                                       "Restoration_Failed")
+
+
+def test_walls_constant():
+    assert TF2_WALLS == (1.05, 1.10, 1.15, 1.20)
