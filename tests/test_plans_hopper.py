@@ -1,0 +1,60 @@
+"""The README's main job end to end: `tfcontact plan hopper --out DIR` (slow, CI runs it)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from tfcontact.cli import main
+from tfcontact.scenes.hopper import hopper_task
+from tfcontact.viz import load_trajectory
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def hopper_plan(tmp_path_factory):
+    out = tmp_path_factory.mktemp("hopper")
+    code = main(["plan", "hopper", "--out", str(out)])
+    return code, out
+
+
+def test_plan_command_writes_every_file_and_an_honest_status(hopper_plan):
+    code, out = hopper_plan
+    for name in ("trajectory.npz", "trajectory.json", "replay.html", "summary.json",
+                 "states.png", "clock.png", "contacts.png", "homotopy.png"):
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    sidecar = json.loads((out / "trajectory.json").read_text())
+    summary = json.loads((out / "summary.json").read_text())
+    assert sidecar["robot"]["source"] == "hopper"
+    assert sidecar["solver"]["complementarity_residual"] <= 1e-4
+    # The exit code, the sidecar and the summary agree: success only with a passed check.
+    assert summary["success"] == (code == 0)
+    assert summary["success"] == (sidecar["verification"]["passed"]
+                                  and sidecar["status"] == "converged")
+
+
+def test_hopper_discovers_flight_phases_and_reaches_the_goal(hopper_plan):
+    _, out = hopper_plan
+    traj = load_trajectory(out / "trajectory.npz")
+    task = hopper_task("short")
+    gaps = traj.gap[:, 0]
+    # It flies (from a start-everywhere guess): the foot is clearly off the ground at
+    # some time and back on it later.
+    assert gaps.max() > 0.05
+    assert gaps.min() > -1e-3 and abs(gaps[-1]) < 1e-3
+    # The terminal cost pulls the base to x_goal; tolerance 5 cm (a least-squares goal).
+    assert abs(traj.q[-1, 0] - task.x_end[0]) < 0.05
+    assert abs(traj.clock[-1] - task.horizon) < 1e-6
+    assert np.all(np.diff(traj.clock) >= -1e-9)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "the independent check fails: the FESD re-simulation of the plan's controls stops at "
+    "the first stance (IPOPT: infeasible step) and the recovered friction impulses exceed "
+    "the cone by 1.2 % of the largest normal impulse (tolerance 1 %)"))
+def test_hopper_plan_passes_the_independent_verification(hopper_plan):
+    code, out = hopper_plan
+    sidecar = json.loads((out / "trajectory.json").read_text())
+    assert sidecar["verification"]["passed"] is True
+    assert code == 0
