@@ -1,0 +1,161 @@
+"""Hopper OCP (TF-8 one-hop): tfcontact against nosnoc_py in the same run.
+
+    python scripts/bench_hopper.py [--skip-nosnoc] [--out benchmarks/hopper_bench.md]
+
+tfcontact states the problem from robots/hopper.urdf (rigid-body M(q); TF-8's diagonal M
+is not a rigid body, see the URDF's comment); nosnoc_py (the bench extra,
+`pip install nosnoc==0.2.0`) is given TF-8's hand-derived model through its public API,
+with the settings of its own hopper example: N = 20, N_FE = 3, Radau IIA with 2 stages,
+Stewart time-freezing, Scholtes with sigma_0 = 100 and 6 homotopy steps; tfcontact runs
+the settings of `tfcontact plan hopper` (`hopper_options()`). Both track the
+same reference (T = 1 s, x: 0.1 -> 1.0, apex height 1.0). The script prints and writes a
+markdown table: wall time, NLPs, IPOPT iterations, complementarity residual, and the
+end-state deviation of each plan from its own re-simulation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from tfcontact.ocp.contact import ContactSolverOptions, solve_contact
+from tfcontact.scenes.hopper import hopper_options, hopper_problem, hopper_task
+
+
+def run_tfcontact(options: ContactSolverOptions) -> dict:
+    start = time.perf_counter()
+    _, _, problem = hopper_problem("bench")
+    result = solve_contact(problem, options, verbose=True)
+    wall = time.perf_counter() - start
+    return {
+        "method": "tfcontact (URDF, Heaviside time-freezing, FESD)",
+        "wall": wall, "build": result.timings["build"], "solve": result.timings["solve"],
+        "nlps": result.ocp.n_nlps, "iterations": result.ocp.total_iterations,
+        "residual": result.ocp.residual, "status": result.status,
+        "deviation": result.verification.end_state_deviation,
+        "x_end": float(result.y[-1, 0]),
+    }
+
+
+def run_nosnoc() -> dict:
+    import casadi as ca
+    import nosnoc as ns
+    from scipy.interpolate import CubicSpline
+
+    task = hopper_task("bench")
+    opts = ns.NosnocOpts()
+    opts.pss_mode = ns.PssMode.STEWART
+    opts.use_fesd = True
+    opts.comp_tol = 1e-9
+    opts.sigma_0 = 100.0
+    opts.homotopy_update_slope = 0.1
+    opts.homotopy_update_rule = ns.HomotopyUpdateRule.LINEAR
+    opts.n_s = 2
+    opts.step_equilibration = ns.StepEquilibrationMode.HEURISTIC_MEAN
+    opts.mpcc_mode = ns.MpccMode.SCHOLTES_INEQ
+    opts.print_level = 1
+    opts.opts_casadi_nlp["ipopt"]["max_iter"] = 4000
+    opts.opts_casadi_nlp["ipopt"]["acceptable_tol"] = 1e-6
+    opts.time_freezing = True
+    opts.equidistant_control_grid = True
+    opts.N_stages = task.n_intervals
+    opts.N_finite_elements = 3
+    opts.max_iter_homotopy = 6
+    opts.terminal_time = task.horizon
+
+    # TF-8's model, written here for nosnoc's API (q = (x, y, theta, l)).
+    q = ca.SX.sym("q", 4)
+    v = ca.SX.sym("v", 4)
+    t = ca.SX.sym("t")
+    u = ca.SX.sym("u", 2)
+    sot = ca.SX.sym("sot")
+    m_b, m_l, i_b, i_l, g = 1.0, 0.1, 0.25, 0.025, 9.81
+    mass = np.diag([m_b + m_l, m_b + m_l, i_b + i_l, m_l])
+    inputs = ca.vertcat(ca.horzcat(0, -ca.sin(q[2])), ca.horzcat(0, ca.cos(q[2])),
+                        ca.horzcat(1, 0), ca.horzcat(0, 1))
+    f_v = ca.vertcat(0, -(m_b + m_l) * g, 0, 0) + inputs @ u
+    normal = ca.vertcat(0, 1, q[3] * ca.sin(q[2]), -ca.cos(q[2]))
+    tangent = ca.vertcat(1, 0, q[3] * ca.cos(q[2]), ca.sin(q[2]))
+    gap = q[1] - q[3] * ca.cos(q[2])
+    inv_m = np.linalg.inv(mass)
+    f_ode = sot * ca.vertcat(v, inv_m @ f_v, 1)
+    zeros = ca.SX.zeros(4, 1)
+    f_pos = ca.vertcat(zeros, inv_m @ (normal - tangent * task.mu) * task.a_n, 0)
+    f_neg = ca.vertcat(zeros, inv_m @ (normal + tangent * task.mu) * task.a_n, 0)
+    signs = np.array([[1, 1, 1], [1, 1, -1], [1, -1, 1], [1, -1, -1],
+                      [-1, 1, 1], [-1, 1, -1], [-1, -1, 1], [-1, -1, -1]])
+    modes = ca.horzcat(*([f_ode] * 6), f_pos, f_neg)
+    switching = ca.vertcat(gap, normal.T @ v, tangent.T @ v)
+    x = ca.vertcat(q, v)
+    knots = np.linspace(0, 1, len(task.waypoints))
+    x_ref = CubicSpline(knots, np.asarray(task.waypoints))(np.linspace(0, 1, opts.N_stages + 1))
+    p_ref = ca.SX.sym("x_ref", 8)
+    weights = np.diag(task.state_weights)
+    running = sot * ((x - p_ref).T @ weights @ (x - p_ref)
+                     + u.T @ np.diag(task.control_weights) @ u)
+    final = (x - task.x_end).T @ np.diag(task.terminal_weights) @ (x - task.x_end)
+    model = ns.NosnocModel(x=ca.vertcat(x, t), F=[modes], S=[signs], c=[switching],
+                           x0=np.concatenate([task.x0, [0.0]]), u=ca.vertcat(u, sot),
+                           p_time_var=p_ref, p_time_var_val=x_ref[1:, :], t_var=t)
+    lower, upper = np.asarray(task.lower), np.asarray(task.upper)
+    ocp = ns.NosnocOcp(lbu=np.array([-50, -50, 0.1]), ubu=np.array([50, 50, 20]),
+                       u_guess=np.array([0, 0, 1]), f_q=running, f_terminal=final,
+                       lbx=np.concatenate([lower, [-np.inf]]),
+                       ubx=np.concatenate([upper, [np.inf]]))
+    start = time.perf_counter()
+    solver = ns.NosnocSolver(opts, model, ocp)
+    results = solver.solve()
+    wall = time.perf_counter() - start
+    traj = np.asarray(results["x_traj"])
+    residual = float(results.get("compl_res", [np.nan])[-1]) if "compl_res" in results else np.nan
+    return {
+        "method": "nosnoc_py 0.2.0 (TF-8 hand model, Stewart time-freezing)",
+        "wall": wall, "build": np.nan, "solve": float(sum(results["cpu_time_nlp"])),
+        "nlps": len(results["nlp_iter"]), "iterations": int(sum(results["nlp_iter"])),
+        "residual": residual, "status": str(results["status"]), "deviation": np.nan,
+        "x_end": float(traj[-1, 0]),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--skip-nosnoc", action="store_true")
+    parser.add_argument("--out", default="benchmarks/hopper_bench.md")
+    args = parser.parse_args()
+    options = hopper_options()
+    rows = [run_tfcontact(options)]
+    if not args.skip_nosnoc:
+        try:
+            rows.append(run_nosnoc())
+        except ImportError:
+            print("nosnoc is not installed (pip install -e '.[bench]'): skipped")
+    lines = [
+        f"# Hopper OCP benchmark ({datetime.date.today()}, {platform.machine()}, "
+        "2 cores shared)", "",
+        "Command: `python scripts/bench_hopper.py`", "",
+        "| method | wall [s] | NLP build [s] | NLP solves [s] | NLPs | IPOPT iterations "
+        "| compl. residual | end-state deviation | x(T) | status |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['method']} | {r['wall']:.1f} | {r['build']:.1f} | {r['solve']:.1f} | "
+            f"{r['nlps']} | {r['iterations']} | {r['residual']:.1e} | {r['deviation']:.1e} | "
+            f"{r['x_end']:.3f} | {r['status']} |")
+    if len(rows) == 2:
+        ratio = rows[1]["wall"] / rows[0]["wall"]
+        lines += ["", f"Wall-time ratio nosnoc_py / tfcontact: {ratio:.2f}; "
+                  f"iteration ratio: {rows[1]['iterations'] / max(rows[0]['iterations'], 1):.2f}"]
+    text = "\n".join(lines) + "\n"
+    print(text)
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(text)
+
+
+if __name__ == "__main__":
+    main()
