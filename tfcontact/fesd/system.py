@@ -22,19 +22,11 @@ import casadi as ca
 import numpy as np
 
 from tfcontact.errors import InvalidInput
-
-
-def _as_sx(expr: object, name: str) -> ca.SX:
-    """Constants (numbers, numpy arrays, DM) are accepted where expressions are expected."""
-    if isinstance(expr, ca.SX):
-        return expr
-    if isinstance(expr, ca.DM | np.ndarray | float | int | list):
-        return ca.SX(ca.DM(expr))
-    raise InvalidInput(f"`{name}` must be a casadi.SX expression, got {type(expr).__name__}")
+from tfcontact.symbolic import as_sx, check_depends, labels
 
 
 def _column(expr: ca.SX, name: str) -> ca.SX:
-    expr = _as_sx(expr, name)
+    expr = as_sx(expr, name)
     if not isinstance(expr, ca.SX):
         raise InvalidInput(f"`{name}` must be a casadi.SX expression, got {type(expr).__name__}")
     if expr.numel() == 0:
@@ -49,25 +41,6 @@ def _symbols(expr: ca.SX, name: str) -> ca.SX:
     if expr.numel() and not expr.is_valid_input():
         raise InvalidInput(f"`{name}` must be a vector of pure symbols (casadi.SX.sym)")
     return expr
-
-
-def _names(names: tuple[str, ...] | None, n: int, prefix: str, arg: str) -> tuple[str, ...]:
-    if names is None:
-        return tuple(f"{prefix}{i}" for i in range(n))
-    names = tuple(names)
-    if len(names) != n:
-        raise InvalidInput(f"`{arg}` has {len(names)} names, expected {n}")
-    return names
-
-
-def _depends_only_on(expr: ca.SX, allowed: list[ca.SX], name: str) -> None:
-    free = ca.symvar(expr)
-    allowed_names = {s.name() for a in allowed for s in ca.symvar(a)}
-    extra = sorted({s.name() for s in free} - allowed_names)
-    if extra:
-        raise InvalidInput(
-            f"`{name}` depends on symbols {extra} that are neither states nor controls"
-        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,7 +70,7 @@ class StewartSystem:
         u = _symbols(self.u, "u")
         object.__setattr__(self, "x", x)
         object.__setattr__(self, "u", u)
-        object.__setattr__(self, "modes", _as_sx(self.modes, "modes"))
+        object.__setattr__(self, "modes", as_sx(self.modes, "modes"))
         if self.modes.shape[0] != x.numel():
             raise InvalidInput(
                 f"`modes` must have one row per state: got shape {self.modes.shape}, "
@@ -114,14 +87,14 @@ class StewartSystem:
             raise InvalidInput("a piecewise smooth system needs at least 2 regions")
         object.__setattr__(self, "indicators", g)
         object.__setattr__(self, "switching", _column(self.switching, "switching"))
-        _depends_only_on(self.indicators, [x], "indicators")
-        _depends_only_on(self.switching, [x], "switching")
-        _depends_only_on(self.modes, [x, u], "modes")
+        check_depends(self.indicators, [x], "indicators", "the states")
+        check_depends(self.switching, [x], "switching", "the states")
+        check_depends(self.modes, [x, u], "modes", "the states and controls")
         object.__setattr__(
-            self, "state_names", _names(self.state_names, x.numel(), "x", "state_names")
+            self, "state_names", labels(self.state_names, x.numel(), "x", "state_names")
         )
         object.__setattr__(
-            self, "control_names", _names(self.control_names, u.numel(), "u", "control_names")
+            self, "control_names", labels(self.control_names, u.numel(), "u", "control_names")
         )
 
     @classmethod
@@ -140,7 +113,7 @@ class StewartSystem:
             signs: the sign matrix S, shape (n_f, n_c), entries +1 or -1.
         """
         switching = _column(switching, "switching")
-        modes = _as_sx(modes, "modes")
+        modes = as_sx(modes, "modes")
         signs = np.asarray(signs, dtype=float)
         if signs.ndim != 2 or signs.shape != (modes.shape[1], switching.numel()):
             raise InvalidInput(
@@ -205,15 +178,15 @@ class HeavisideSystem:
                 f"`alpha` has {alpha.numel()} entries but `switching` has {c.numel()}; "
                 "give one step variable per switching function"
             )
-        _depends_only_on(c, [x], "switching")
-        _depends_only_on(rhs, [x, u, alpha], "rhs")
+        check_depends(c, [x], "switching", "the states")
+        check_depends(rhs, [x, u, alpha], "rhs", "the states, controls and alpha")
         for name, value in (("x", x), ("u", u), ("alpha", alpha), ("rhs", rhs), ("switching", c)):
             object.__setattr__(self, name, value)
         object.__setattr__(
-            self, "state_names", _names(self.state_names, x.numel(), "x", "state_names")
+            self, "state_names", labels(self.state_names, x.numel(), "x", "state_names")
         )
         object.__setattr__(
-            self, "control_names", _names(self.control_names, u.numel(), "u", "control_names")
+            self, "control_names", labels(self.control_names, u.numel(), "u", "control_names")
         )
 
     @property

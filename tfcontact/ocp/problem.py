@@ -23,17 +23,7 @@ import numpy as np
 
 from tfcontact.errors import InvalidInput
 from tfcontact.fesd.system import HeavisideSystem, StewartSystem
-
-
-def _free_names(expr: ca.SX) -> set[str]:
-    return {s.name() for s in ca.symvar(expr)}
-
-
-def _check_depends(expr: ca.SX, allowed: list[ca.SX], name: str, what: str) -> None:
-    allowed_names = set().union(*[_free_names(a) for a in allowed]) if allowed else set()
-    extra = sorted(_free_names(expr) - allowed_names)
-    if extra:
-        raise InvalidInput(f"`{name}` depends on symbols {extra}; it may use only {what}")
+from tfcontact.symbolic import check_depends
 
 
 def _bound_vector(value: object, n: int, default: float, name: str) -> np.ndarray:
@@ -161,8 +151,8 @@ class OptimalControlProblem:
             if not isinstance(expr, ca.SX) or expr.numel() != 1:
                 raise InvalidInput(f"`{name}` must be a scalar casadi.SX expression")
             object.__setattr__(self, name, expr)
-        _check_depends(self.lagrange, [sys.x, sys.u], "lagrange", "the states and controls")
-        _check_depends(self.mayer, [sys.x], "mayer", "the states")
+        check_depends(self.lagrange, [sys.x, sys.u], "lagrange", "the states and controls")
+        check_depends(self.mayer, [sys.x], "mayer", "the states")
         object.__setattr__(self, "u_lower", _bound_vector(self.u_lower, n_u, -np.inf, "u_lower"))
         object.__setattr__(self, "u_upper", _bound_vector(self.u_upper, n_u, np.inf, "u_upper"))
         object.__setattr__(self, "x_lower", _bound_vector(self.x_lower, n_x, -np.inf, "x_lower"))
@@ -178,7 +168,7 @@ class OptimalControlProblem:
             if con is not None:
                 if not isinstance(con, Constraint):
                     raise InvalidInput(f"`{name}` must be a Constraint(expression, lower, upper)")
-                _check_depends(con.expression, allowed, name, what)
+                check_depends(con.expression, allowed, name, what)
         if self.boundary_constraints is not None and not callable(self.boundary_constraints):
             raise InvalidInput("`boundary_constraints` must be a callable (k, x_k) -> Constraint")
         if self.x_guess is not None:

@@ -27,18 +27,11 @@ import casadi as ca
 import numpy as np
 
 from tfcontact.errors import InvalidInput
-
-
-def _sx(expr: object, name: str) -> ca.SX:
-    if isinstance(expr, ca.SX):
-        return expr
-    if isinstance(expr, ca.DM | np.ndarray | float | int | list):
-        return ca.SX(ca.DM(expr))
-    raise InvalidInput(f"`{name}` must be a casadi.SX expression, got {type(expr).__name__}")
+from tfcontact.symbolic import as_sx, check_depends, labels
 
 
 def _symbol_vector(expr: object, name: str) -> ca.SX:
-    expr = _sx(expr, name)
+    expr = as_sx(expr, name)
     if expr.numel() == 0:
         return ca.SX(0, 1)
     if expr.shape[1] != 1 or not expr.is_valid_input():
@@ -46,17 +39,6 @@ def _symbol_vector(expr: object, name: str) -> ca.SX:
             f"`{name}` must be a column of pure symbols (casadi.SX.sym), got shape {expr.shape}"
         )
     return expr
-
-
-def _free_symbols(expr: ca.SX) -> set[str]:
-    return {s.name() for s in ca.symvar(expr)}
-
-
-def _check_depends(expr: ca.SX, allowed: list[ca.SX], name: str) -> None:
-    allowed_names = set().union(*(_free_symbols(a) for a in allowed)) if allowed else set()
-    extra = sorted(_free_symbols(expr) - allowed_names)
-    if extra:
-        raise InvalidInput(f"`{name}` depends on symbols {extra} that are not allowed here")
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,16 +96,16 @@ class Contact:
                 f"`eps_t` must be > 0 (3-D friction regularisation [m/s]), got {self.eps_t}; "
                 "the default is 1e-7"
             )
-        gap = _sx(self.gap, "gap")
+        gap = as_sx(self.gap, "gap")
         if gap.numel() != 1:
             raise InvalidInput(f"`gap` must be a scalar expression, got shape {gap.shape}")
         object.__setattr__(self, "gap", gap)
         if self.normal is not None:
-            normal = _sx(self.normal, "normal")
+            normal = as_sx(self.normal, "normal")
             if normal.shape[1] != 1:
                 raise InvalidInput(f"`normal` must be a column, got shape {normal.shape}")
             object.__setattr__(self, "normal", normal)
-        tangents = ca.SX(0, 0) if self.tangents is None else _sx(self.tangents, "tangents")
+        tangents = ca.SX(0, 0) if self.tangents is None else as_sx(self.tangents, "tangents")
         if tangents.shape[1] > 2:
             raise InvalidInput(
                 f"`tangents` must have 0, 1 or 2 columns (planar or 3-D contact), "
@@ -187,14 +169,14 @@ class ComplementarityLagrangianSystem:
                 "n_q == n_v (use a minimal coordinate set, e.g. a ZYX-Euler free flyer)"
             )
         n = q.numel()
-        mass = _sx(self.mass_matrix, "mass_matrix")
+        mass = as_sx(self.mass_matrix, "mass_matrix")
         if mass.shape != (n, n):
             raise InvalidInput(f"`mass_matrix` must have shape ({n}, {n}), got {mass.shape}")
-        forces = _sx(self.forces, "forces")
+        forces = as_sx(self.forces, "forces")
         if forces.shape != (n, 1):
             raise InvalidInput(f"`forces` must have shape ({n}, 1), got {forces.shape}")
-        _check_depends(mass, [q], "mass_matrix")
-        _check_depends(forces, [q, v, u], "forces")
+        check_depends(mass, [q], "mass_matrix", "q")
+        check_depends(forces, [q, v, u], "forces", "q, v and u")
         if isinstance(self.contacts, Contact):
             raise InvalidInput("`contacts` must be a sequence of Contact, e.g. (contact,)")
         contacts = tuple(self.contacts)
@@ -207,7 +189,7 @@ class ComplementarityLagrangianSystem:
                     f"`contacts[{i}]` must be a Contact, got {type(contact).__name__}"
                 )
             where = f"contacts[{i}]"
-            _check_depends(contact.gap, [q], f"{where}.gap")
+            check_depends(contact.gap, [q], f"{where}.gap", "q")
             if not ca.depends_on(contact.gap, q):
                 raise InvalidInput(
                     f"`{where}.gap` = {contact.gap} does not depend on `q` (contact "
@@ -218,14 +200,14 @@ class ComplementarityLagrangianSystem:
                 normal = ca.jacobian(contact.gap, q).T
             if normal.shape != (n, 1):
                 raise InvalidInput(f"`{where}.normal` must have shape ({n}, 1), got {normal.shape}")
-            _check_depends(normal, [q], f"{where}.normal")
+            check_depends(normal, [q], f"{where}.normal", "q")
             tangents = contact.tangents
             if tangents.shape[1] > 0:
                 if tangents.shape[0] != n:
                     raise InvalidInput(
                         f"`{where}.tangents` must have {n} rows, got shape {tangents.shape}"
                     )
-                _check_depends(tangents, [q], f"{where}.tangents")
+                check_depends(tangents, [q], f"{where}.tangents", "q")
             resolved.append(replace(contact, normal=normal))
         names = [c.name for c in resolved]
         if len(set(names)) != len(names):
@@ -233,10 +215,10 @@ class ComplementarityLagrangianSystem:
         for name, value in (("q", q), ("v", v), ("u", u), ("mass_matrix", mass),
                             ("forces", forces), ("contacts", tuple(resolved))):
             object.__setattr__(self, name, value)
-        object.__setattr__(self, "q_names", _labels(self.q_names, n, "q", "q_names"))
-        object.__setattr__(self, "v_names", _labels(self.v_names, n, "v", "v_names"))
+        object.__setattr__(self, "q_names", labels(self.q_names, n, "q", "q_names"))
+        object.__setattr__(self, "v_names", labels(self.v_names, n, "v", "v_names"))
         object.__setattr__(
-            self, "control_names", _labels(self.control_names, u.numel(), "u", "control_names")
+            self, "control_names", labels(self.control_names, u.numel(), "u", "control_names")
         )
 
     # ------------------------------------------------------------------ sizes
@@ -328,12 +310,3 @@ class ComplementarityLagrangianSystem:
 
 Cls = ComplementarityLagrangianSystem
 """Short alias of `ComplementarityLagrangianSystem`."""
-
-
-def _labels(names: tuple[str, ...] | None, n: int, prefix: str, arg: str) -> tuple[str, ...]:
-    if names is None:
-        return tuple(f"{prefix}{i}" for i in range(n))
-    names = tuple(names)
-    if len(names) != n:
-        raise InvalidInput(f"`{arg}` has {len(names)} names, expected {n}")
-    return names
