@@ -2,20 +2,36 @@
 
 `OptimalControlProblem` states the problem; `build(problem, discretization=Transcription())`
 transcribes it into an MPCC with FESD; `solve(problem, relaxation=..., homotopy=..., nlp=...)`
-runs the MPCC homotopy and returns an `OcpResult`. The layer knows nothing about robots or
-time-freezing.
+runs the MPCC homotopy and returns an `OcpResult`; that core knows nothing about robots or
+time-freezing. On top of it, `ContactProblem` + `solve_contact` state and solve a
+time-freezing OCP in physical time (speed of time, clock constraints) and verify the plan
+independently (`Verification`).
 """
 
+from tfcontact.ocp.contact import (
+    ContactProblem,
+    ContactResult,
+    ContactSolverOptions,
+    solve_contact,
+    verify_plan,
+)
 from tfcontact.ocp.problem import BoundaryHook, Constraint, OptimalControlProblem
 from tfcontact.ocp.solve import OcpBuild, OcpResult, Transcription, build, solve
+from tfcontact.ocp.verify import Verification
 
 __all__ = [
     "BoundaryHook",
     "Constraint",
+    "ContactProblem",
+    "ContactResult",
+    "ContactSolverOptions",
     "OcpBuild",
     "OcpResult",
     "OptimalControlProblem",
     "Transcription",
+    "Verification",
     "build",
     "solve",
+    "solve_contact",
+    "verify_plan",
 ]
