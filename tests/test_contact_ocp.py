@@ -1,0 +1,55 @@
+"""The contact OCP's statement: what it accepts, what it rejects, what it transcribes."""
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from tfcontact.errors import InvalidInput
+from tfcontact.ocp import ContactProblem, ContactSolverOptions
+from tfcontact.ocp.contact import _transcribe
+from tfcontact.scenes.particles import point_mass
+from tfcontact.timefreezing import time_freeze, with_speed_of_time
+
+
+@pytest.fixture
+def particle():
+    return time_freeze(point_mass(2, mu=0.6, a_n=9.81, controlled=True))
+
+
+def test_transcription_adds_speed_of_time_cost_state_and_clock_constraints(particle):
+    u = particle.u
+    problem = ContactProblem(system=particle, q0=[0, 1.5], v0=[0, 0], horizon=2.0,
+                             n_intervals=4, running_cost=u[0] ** 2, u_lower=-10, u_upper=10,
+                             speed_of_time=(1.0, 5.0))
+    ocp, system = _transcribe(problem)
+    assert system.speed_of_time_index == 2 and system.cost_index is not None
+    np.testing.assert_allclose(ocp.u_lower, [-10, -10, 1.0])
+    np.testing.assert_allclose(ocp.u_upper, [10, 10, 5.0])
+    # The clock is pinned to k T / N at every interval boundary.
+    for k in range(1, 5):
+        con = ocp.boundary_constraints(k, system.y)
+        value = ca.Function("c", [system.y], [con.expression])(np.zeros(system.n_y))
+        np.testing.assert_allclose(float(value), -k * 2.0 / 4)
+        assert con.lower == con.upper == 0.0
+    np.testing.assert_allclose(ocp.x0[system.q_index], [0, 1.5])
+    assert ocp.x0[system.clock_index] == 0.0 and ocp.x_lower[system.clock_index] == 0.0
+
+
+def test_bad_contact_problems_are_named(particle):
+    base = dict(system=particle, q0=[0, 1], v0=[0, 0], horizon=1.0, n_intervals=4)
+    with pytest.raises(InvalidInput, match="`horizon` must be a positive time"):
+        ContactProblem(**{**base, "horizon": -1.0})
+    with pytest.raises(InvalidInput, match="`n_intervals` must be a positive integer"):
+        ContactProblem(**{**base, "n_intervals": 0})
+    with pytest.raises(InvalidInput, match="`speed_of_time` must be"):
+        ContactProblem(**{**base, "speed_of_time": (2.0, 1.0)})
+    with pytest.raises(InvalidInput, match="`q0` has 3 entries, expected 2"):
+        ContactProblem(**{**base, "q0": [0, 1, 2]})
+    with pytest.raises(InvalidInput, match="already has a speed of time"):
+        ContactProblem(**{**base, "system": with_speed_of_time(particle)})
+    with pytest.raises(InvalidInput, match="`running_cost` must be a scalar"):
+        ContactProblem(**{**base, "running_cost": particle.u})
+    with pytest.raises(InvalidInput, match="`verify_refinement` must be at least 1"):
+        ContactSolverOptions(verify_refinement=0)
+    with pytest.raises(InvalidInput, match="`gap_tolerance` must be positive"):
+        ContactSolverOptions(gap_tolerance=0.0)
