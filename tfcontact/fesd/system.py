@@ -27,8 +27,6 @@ from tfcontact.symbolic import as_sx, check_depends, labels
 
 def _column(expr: ca.SX, name: str) -> ca.SX:
     expr = as_sx(expr, name)
-    if not isinstance(expr, ca.SX):
-        raise InvalidInput(f"`{name}` must be a casadi.SX expression, got {type(expr).__name__}")
     if expr.numel() == 0:
         return ca.SX(0, 1)
     if expr.shape[1] != 1:

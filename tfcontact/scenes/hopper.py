@@ -7,7 +7,7 @@ reference is a cubic spline through the listed way points, sampled in physical t
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -43,9 +43,6 @@ class HopperTask:
     lower: tuple[float, ...]
     upper: tuple[float, ...]
     control_bound: float = 50.0
-    n_finite_elements: int = 3
-    stages: int = 2
-    extra: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if len(self.waypoints) < 2:
