@@ -49,6 +49,8 @@ def test_bad_contact_problems_are_named(particle):
         ContactProblem(**{**base, "system": with_speed_of_time(particle)})
     with pytest.raises(InvalidInput, match="`running_cost` must be a scalar"):
         ContactProblem(**{**base, "running_cost": particle.u})
+    with pytest.raises(InvalidInput, match="`verify_method` must be one of"):
+        ContactSolverOptions(verify_method="exact")
     with pytest.raises(InvalidInput, match="`verify_refinement` must be at least 1"):
         ContactSolverOptions(verify_refinement=0)
     with pytest.raises(InvalidInput, match="`gap_tolerance` must be positive"):

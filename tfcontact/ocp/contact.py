@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from tfcontact.errors import InvalidInput, SolveFailed
+from tfcontact.errors import IncompatibleOptions, InvalidInput, SolveFailed, TfcontactError
 from tfcontact.fesd import Fesd, RadauIIA, Scheme, simulate
 from tfcontact.mpcc import Homotopy, Ipopt, MpccStatus, Relaxation, Scholtes
 from tfcontact.ocp.problem import Constraint, OptimalControlProblem
@@ -34,13 +34,14 @@ from tfcontact.ocp.solve import OcpResult, Transcription, solve
 from tfcontact.ocp.verify import (
     Verification,
     clock_checks,
-    contact_impulses,
+    collocation_impulses,
     friction_cone_violation,
 )
 from tfcontact.timefreezing import (
     FROZEN_RATE_TOL,
     PhysicalTrajectory,
     TimeFreezingSystem,
+    simulate_impacts,
     to_physical_time,
     with_lagrange_cost,
     with_speed_of_time,
@@ -163,6 +164,9 @@ class ContactProblem:
         return self.horizon if self.numerical_horizon is None else self.numerical_horizon
 
 
+VERIFY_METHODS = ("auto", "reference", "fesd")
+
+
 @dataclass(frozen=True)
 class ContactSolverOptions:
     """How a contact OCP is discretised and solved.
@@ -177,7 +181,11 @@ class ContactSolverOptions:
         relaxation: the MPCC relaxation.
         homotopy: the sigma schedule and complementarity tolerance.
         nlp: IPOPT settings.
-        verify_refinement: the re-simulation uses this many steps per control interval.
+        verify_method: how the plan's controls are re-simulated: "reference" (the
+            event-detecting integration of the original system with impacts,
+            `simulate_impacts`: one contact), "fesd" (the FESD simulator on a finer grid)
+            or "auto" (the reference where it applies, else FESD).
+        verify_refinement: the FESD re-simulation uses this many steps per control interval.
         verify_scheme: the re-simulation's IRK scheme.
         verify_relaxation: the re-simulation's relaxation (`L1Penalty()` needs one or two
             NLPs per step where Scholtes needs one per decade of sigma).
@@ -193,6 +201,7 @@ class ContactSolverOptions:
     relaxation: Relaxation = field(default_factory=Scholtes)
     homotopy: Homotopy = field(default_factory=lambda: Homotopy(tolerance=1e-7))
     nlp: Ipopt = field(default_factory=lambda: Ipopt(tol=1e-8, max_iter=2000))
+    verify_method: str = "auto"
     verify_refinement: int = 4
     verify_scheme: Scheme = field(default_factory=lambda: RadauIIA(3))
     verify_relaxation: Relaxation = field(default_factory=Scholtes)
@@ -202,6 +211,9 @@ class ContactSolverOptions:
     clock_tolerance: float = 1e-6
 
     def __post_init__(self) -> None:
+        if self.verify_method not in VERIFY_METHODS:
+            raise InvalidInput(f"`verify_method` must be one of {VERIFY_METHODS}, got "
+                               f"{self.verify_method!r}")
         if self.verify_refinement < 1:
             raise InvalidInput(
                 f"`verify_refinement` must be at least 1, got {self.verify_refinement}")
@@ -317,24 +329,41 @@ def _transcribe(problem: ContactProblem) -> tuple[OptimalControlProblem, TimeFre
     return ocp, tf
 
 
-def verify_plan(
-    problem: ContactProblem,
-    system: TimeFreezingSystem,
-    ocp: OcpResult,
-    physical: PhysicalTrajectory,
-    options: ContactSolverOptions,
-) -> Verification:
-    """The independent checks of a contact plan (see `Verification`).
+def _state_indices(system: TimeFreezingSystem) -> list[int]:
+    return (list(range(system.q_index.start, system.q_index.stop))
+            + list(range(system.v_index.start, system.v_index.stop)))
 
-    Re-simulates the plan's controls (physical controls and speed of time per interval)
-    with the FESD simulator on a grid `verify_refinement` times finer, with a higher-order
-    scheme, and compares the end states; checks the gaps on the plan, the friction cone
-    of the contact impulses recovered from the momentum balance in physical time
-    (M dv - int f_v dt = J^T Lambda, using the CLS's own M, f_v and contact directions,
-    not the time-freezing modes) and the clock.
+
+def _reference_deviation(problem: ContactProblem, system: TimeFreezingSystem,
+                         ocp: OcpResult) -> tuple[float, str]:
+    """End-state deviation of the plan from the event-detecting reference simulation.
+
+    The physical controls are piecewise constant between the clock values at the
+    control-interval boundaries (k T / N with the stagewise clock constraint).
     """
-    cls = system.cls
-    notes: list[str] = []
+    clocks = ocp.x_intervals[:, system.clock_index]
+    n_u = system.cls.n_u
+    controls = ocp.u[:, :n_u]
+
+    def u_of_t(t: float) -> np.ndarray:
+        k = int(np.clip(np.searchsorted(clocks, t, side="right") - 1, 0, len(controls) - 1))
+        return controls[k]
+
+    x0 = np.concatenate([problem.q0, problem.v0])
+    reference = simulate_impacts(system.cls, x0, u_of_t if n_u else None, problem.horizon,
+                                 breakpoints=clocks[1:-1], rtol=1e-10, atol=1e-11)
+    if reference.status != "success":
+        raise SolveFailed(f"reference simulation stopped: {reference.message}", reference)
+    deviation = float(np.max(np.abs(reference.final_state() - ocp.x[-1, _state_indices(system)])))
+    times = np.round(reference.impact_times, 4).tolist()
+    return deviation, (f"event-detecting reference (DOP853, exact impacts), "
+                       f"{len(times)} impacts at t = {times} s")
+
+
+def _fesd_deviation(problem: ContactProblem, system: TimeFreezingSystem, ocp: OcpResult,
+                    options: ContactSolverOptions, notes: list[str]) -> tuple[float, str]:
+    """End-state deviation (q, v, clock) of the plan from an FESD re-simulation of its
+    controls on a finer grid with a higher-order scheme."""
     n_int = problem.n_intervals
     refine = options.verify_refinement
     u_steps = np.repeat(ocp.u, refine, axis=0)
@@ -344,13 +373,48 @@ def verify_plan(
         n_finite_elements=options.n_finite_elements, homotopy=options.homotopy,
         relaxation=options.verify_relaxation, nlp=options.nlp, throw=False,
     )
-    idx = list(range(system.q_index.start, system.q_index.stop)) + list(
-        range(system.v_index.start, system.v_index.stop)) + [system.clock_index]
+    idx = _state_indices(system) + [system.clock_index]
+    method = (f"FESD re-simulation, {n_int * refine} steps x {options.n_finite_elements} "
+              f"elements, {options.verify_scheme!r}")
     if not sim.success:
         notes.append(f"re-simulation did not converge: {sim.message}")
-        deviation = float("inf")
-    else:
-        deviation = float(np.max(np.abs(sim.x[-1, idx] - ocp.x[-1, idx])))
+        return float("inf"), method
+    return float(np.max(np.abs(sim.x[-1, idx] - ocp.x[-1, idx]))), method
+
+
+def verify_plan(
+    problem: ContactProblem,
+    system: TimeFreezingSystem,
+    ocp: OcpResult,
+    physical: PhysicalTrajectory,
+    options: ContactSolverOptions,
+) -> Verification:
+    """The independent checks of a contact plan (see `Verification`).
+
+    Re-simulates the plan's physical controls with the event-detecting reference of the
+    original system with impacts (one contact; `options.verify_method`), or else with the
+    FESD simulator on a grid `verify_refinement` times finer with a higher-order scheme,
+    and compares the end states; checks the gaps on the plan, the friction cone of the
+    contact impulses recovered from the momentum balance on the plan's collocation
+    polynomials (M v' - f_v t' = J^T lambda, using the CLS's own M, f_v and contact
+    directions, not the time-freezing modes) and the clock.
+    """
+    cls = system.cls
+    notes: list[str] = []
+    deviation, method = float("nan"), ""
+    if options.verify_method in ("auto", "reference") and cls.n_contacts == 1:
+        try:
+            deviation, method = _reference_deviation(problem, system, ocp)
+        except TfcontactError as error:
+            if options.verify_method == "reference":
+                raise
+            notes.append(f"event-detecting reference not applicable ({error}); FESD used")
+    elif options.verify_method == "reference":
+        raise IncompatibleOptions(
+            f"`verify_method`='reference' handles one contact, the system has "
+            f"{cls.n_contacts}; use 'fesd' or 'auto'")
+    if not method:
+        deviation, method = _fesd_deviation(problem, system, ocp, options, notes)
     # Gaps on the physical plan only: inside a frozen piece an elastic auxiliary spring
     # runs *inside* the obstacle by construction (the clock stands still there).
     gap_fn = cls.function("gaps")
@@ -362,14 +426,10 @@ def verify_plan(
     stage_gaps = np.asarray(gap_fn(stage_q.T)).T if stage_q.size else gaps
     min_gap = float(min(gaps.min(), stage_gaps.min()))
 
-    # Contact impulses from the momentum balance in physical time.
-    t = physical.t
-    q = physical.q
-    v = physical.v
+    # Contact impulses from the momentum balance on the plan's collocation polynomials.
     n_u = cls.n_u
-    interval = np.clip(np.searchsorted(ocp.t_intervals, ocp.t[physical.index], side="right") - 1,
-                       0, n_int - 1)
-    u = ocp.u[interval, :n_u]
+    n_fe = options.n_finite_elements
+    u = np.repeat(ocp.u[:, :n_u], n_fe, axis=0)
     mass = cls.function("mass")
     forces = cls.function("forces")
     normals = cls.function("normals")
@@ -387,8 +447,10 @@ def verify_plan(
                 cols.append(np.asarray(tangents[i](qk)) * closed[i])
         return np.hstack(cols)
 
-    impulses, fit = contact_impulses(
-        t, q, v, u,
+    tableau = ocp.build.discretization.tableau
+    impulses, fit = collocation_impulses(
+        ocp.x[:-1], ocp.x_stages, ocp.h, tableau.A, tableau.b, u,
+        (system.q_index, system.v_index, system.clock_index),
         mass_matrix=lambda qk: np.asarray(mass(qk)),
         smooth_force=lambda qk, vk, uk: np.asarray(forces(qk, vk, uk)).reshape(-1),
         contact_jacobian=jac,
@@ -414,8 +476,7 @@ def verify_plan(
               and clock_error <= options.clock_tolerance)
     return Verification(
         passed=bool(passed),
-        method=(f"FESD re-simulation, {n_int * refine} steps x {options.n_finite_elements} "
-                f"elements, {options.verify_scheme!r}"),
+        method=method,
         end_state_deviation=deviation, min_gap=min_gap, friction_cone_violation=cone,
         clock_monotone=monotone, clock_end_error=clock_error, tolerances=tolerances,
         notes=tuple(notes),

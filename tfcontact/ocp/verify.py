@@ -97,6 +97,59 @@ def contact_impulses(
     return np.asarray(impulses), np.asarray(residuals)
 
 
+def collocation_impulses(
+    x_start: np.ndarray,
+    x_stages: np.ndarray,
+    h: np.ndarray,
+    A: np.ndarray,
+    b: np.ndarray,
+    u: np.ndarray,
+    index: tuple[slice, slice, int],
+    mass_matrix: Callable[[np.ndarray], np.ndarray],
+    smooth_force: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
+    contact_jacobian: Callable[[np.ndarray], np.ndarray],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Contact impulses per finite element from the plan's collocation polynomials.
+
+    A collocation method makes the stage derivatives exact on its polynomial: with
+    X_j = x_0 + h sum_k A_jk X'_k, the numerical-time derivatives at the stages are
+    X' = A^{-1} (X - x_0) / h. At every stage the contact force rate follows from the
+    momentum balance in numerical time tau, M(q) dv/dtau - f_v(q, v, u) dt/dtau =
+    J(q)^T lambda (least squares), and the element's impulse is h sum_j b_j lambda_j: the
+    collocation quadrature, exact to the scheme's order, with no time step in the
+    denominator, so frozen (impact) and running pieces are treated alike.
+
+    Args:
+        x_start: (E, n_y) states at the elements' starts; x_stages: (E, s, n_y).
+        h: (E,) element lengths in numerical time; A, b: the collocation tableau.
+        u: (E, n_u) physical controls per element.
+        index: (q slice, v slice, clock index) into y.
+        mass_matrix, smooth_force, contact_jacobian: as in `contact_impulses`.
+
+    Returns:
+        impulses: (E, m) contact impulses [N s]; fit_residual: (E,) the quadrature of
+        ||M v' - f_v t' - J^T lambda||, what the contacts cannot explain [N s].
+    """
+    q_index, v_index, clock = index
+    inverse = np.linalg.inv(np.asarray(A, dtype=float))
+    b = np.asarray(b, dtype=float)
+    impulses, residuals = [], []
+    for e in range(len(h)):
+        rates = inverse @ (x_stages[e] - x_start[e]) / h[e]
+        lam_e, res_e = 0.0, 0.0
+        for j in range(len(b)):
+            qj, vj = x_stages[e, j, q_index], x_stages[e, j, v_index]
+            rhs = (mass_matrix(qj) @ rates[j, v_index]
+                   - smooth_force(qj, vj, u[e]) * rates[j, clock])
+            jac = contact_jacobian(qj)
+            lam, *_ = np.linalg.lstsq(jac, rhs, rcond=None)
+            lam_e = lam_e + h[e] * b[j] * lam
+            res_e += h[e] * b[j] * float(np.linalg.norm(jac @ lam - rhs))
+        impulses.append(lam_e)
+        residuals.append(res_e)
+    return np.asarray(impulses), np.asarray(residuals)
+
+
 def friction_cone_violation(
     impulses: np.ndarray, mu: Sequence[float], n_tangents: Sequence[int]
 ) -> float:

@@ -11,6 +11,12 @@ exactly, without any time-freezing:
   v+ = v- + M^{-1} (n Lambda_n + B Lambda_t). For e = 0 this is exactly the impulse of the
   inelastic time-freezing auxiliary dynamics ([AUTO23] section 4.3, a_t = mu a_n).
   A bounce slower than `rest_velocity` ends in persistent contact (no Zeno cascade).
+* inelastic impact of a planar contact whose directions are not kinetically orthogonal
+  (a leg: B^T M^{-1} n != 0): the impulse flow dv/dP = W (1, lambda_t) in the normal
+  impulse P, W = [n B]^T M^{-1} [n B], lambda_t = -mu sign(v_t) while slipping and
+  -W_tn / W_tt (if within +-mu) while v_t = 0, until v_n = 0. The flow is piecewise
+  linear, so its pieces are exact; it is the velocity the time-freezing auxiliary
+  dynamics M^{-1} (n -+ mu B) a_n reach, with P = a_n tau.
 * persistent contact, as the index-reduced DAE ([AUTO23] eqs. (13), (22), (23)):
   slip: lambda_t = -mu lambda_n v_t/||v_t||, lambda_n from n^T v' + (dn/dt)^T v = 0;
   stick: (lambda_n, lambda_t) from the acceleration-level equations of n^T v = 0 and
@@ -20,9 +26,9 @@ exactly, without any time-freezing:
 
 Limits (checked where possible, raised as IncompatibleOptions):
 * one contact only;
-* at contact, B^T M^{-1} n = 0 and B^T M^{-1} B = w I (kinetic orthogonality and an
-  isotropic tangent metric), true for particles, balls and blocks whose contact point is
-  the centre of mass' projection;
+* at an elastic or 3-D frictional impact, B^T M^{-1} n = 0 and B^T M^{-1} B = w I
+  (kinetic orthogonality and an isotropic tangent metric), true for particles, balls and
+  blocks whose contact point is the centre of mass' projection;
 * the gap is kept by the index-reduced dynamics without stabilisation: the position
   drift is of the integrator's tolerance order for curved gaps and zero for affine ones;
 * the slip-stop event in 3-D uses v_t . v_t(start of slip), exact while the slip direction
@@ -33,7 +39,7 @@ Limits (checked where possible, raised as IncompatibleOptions):
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import casadi as ca
@@ -135,6 +141,7 @@ def simulate_impacts(
     max_events: int = 200,
     rest_velocity: float = 1e-7,
     max_step: float = np.inf,
+    breakpoints: Sequence[float] = (),
 ) -> ReferenceSimulation:
     """Event-detecting simulation of the CLS with impacts (module docstring).
 
@@ -150,6 +157,9 @@ def simulate_impacts(
         max_events: stop (status "max_events") after this many mode changes.
         rest_velocity: an impact with |v_n-| below it [m/s] ends in persistent contact.
         max_step: solve_ivp's max_step [s] (limit it when u_of_t has kinks).
+        breakpoints: times [s] where u_of_t jumps (a piecewise constant control): each
+            integration stops there and the contact mode is decided anew with the new
+            control (a push can lift the foot off or break sticking).
 
     Returns:
         A `ReferenceSimulation`.
@@ -200,19 +210,27 @@ def simulate_impacts(
                        else (FREE, None))
     status, message = "success", f"reached T = {T}"
     events_used = 0
+    stops = sorted({float(b) for b in breakpoints if 0.0 < b < T} | {float(T)})
     while t_cur < T:
-        modes.append((t_cur, mode))
+        if not modes or modes[-1][1] != mode:
+            modes.append((t_cur, mode))
         rhs, events = _phase(model, mode, direction, control, x_cur)
+        t_stop = next(b for b in stops if b > t_cur)
         with np.errstate(under="ignore"):  # scipy's step-size floor at t = 0 underflows
-            sol = solve_ivp(rhs, (t_cur, T), x_cur, method="DOP853", rtol=rtol, atol=atol,
-                            events=events, max_step=max_step)
+            sol = solve_ivp(rhs, (t_cur, t_stop), x_cur, method="DOP853", rtol=rtol,
+                            atol=atol, events=events, max_step=max_step)
         if sol.status == -1:
             raise InvalidInput(f"reference integration failed in mode {mode}: {sol.message}")
         ts.append(sol.t[1:])
         xs.append(sol.y.T[1:])
         t_cur, x_cur = float(sol.t[-1]), sol.y[:, -1].copy()
         if sol.status == 0:
-            break
+            if t_stop >= T:
+                break
+            if mode != FREE:  # the control jumps: decide the contact mode anew
+                mode, direction = _contact_mode(model, x_cur, control(t_cur),
+                                                stick_first=mode == STICK)
+            continue
         events_used += 1
         if events_used > max_events:
             status, message = "max_events", f"stopped after {max_events} events at t = {t_cur}"
@@ -372,6 +390,48 @@ def _phase(model: _Model, mode: str, direction, control, x_start):
     return rhs, [lift_off, cone]
 
 
+def _planar_impulse_flow(w: np.ndarray, vn: float, vt: float, mu: float):
+    """Normal and tangential impulse of an inelastic planar impact by the impulse flow.
+
+    w: the 2x2 Delassus matrix [n b]^T M^{-1} [n b]; (vn, vt): contact velocities before
+    the impact. Returns (Lambda_n, Lambda_t) that bring v_n to zero (module docstring).
+    """
+    lam_n = lam_t = 0.0
+    scale = max(abs(vn), abs(vt), 1e-300)
+    for _ in range(4):  # slip -> stick -> end, or slip -> reversed slip -> end
+        if vn >= 0.0:
+            break
+        if abs(vt) <= 1e-14 * scale:
+            vt = 0.0
+            ratio = -w[1, 0] / w[1, 1]
+            if abs(ratio) <= mu:
+                rate_n = w[0, 0] + w[0, 1] * ratio
+                if rate_n <= 0:
+                    raise IncompatibleOptions("the impact jams: W_nn - W_nt W_tn / W_tt <= 0")
+                step = -vn / rate_n
+                lam_n, lam_t, vn = lam_n + step, lam_t + ratio * step, 0.0
+                break
+            ratio = -mu * math.copysign(1.0, w[1, 0])  # slips the way W_tn pushes
+        else:
+            ratio = -mu * math.copysign(1.0, vt)
+        rate_n = w[0, 0] + w[0, 1] * ratio
+        rate_t = w[1, 0] + w[1, 1] * ratio
+        if rate_n <= 0:
+            raise IncompatibleOptions(
+                "the impact jams (Painleve): W_nn + W_nt lambda_t <= 0 while slipping")
+        step = -vn / rate_n
+        stops = vt != 0.0 and rate_t * vt < 0 and -vt / rate_t < step
+        if stops:
+            step = -vt / rate_t
+        lam_n, lam_t = lam_n + step, lam_t + ratio * step
+        vn = vn + rate_n * step
+        vt = 0.0 if stops else vt + rate_t * step
+        if not stops:
+            vn = 0.0
+            break
+    return lam_n, lam_t
+
+
 def _impact(model: _Model, x: np.ndarray, u: np.ndarray, rest_velocity: float):
     n = model.n
     _, minv_jac, jac, _, _ = model.terms(x, u)
@@ -380,6 +440,8 @@ def _impact(model: _Model, x: np.ndarray, u: np.ndarray, rest_velocity: float):
     vn = float(normal[:, 0] @ v)
     delassus = float(normal[:, 0] @ minv_n[:, 0])
     scale = max(1.0, float(np.abs(minv_jac).max()))
+    rest = model.e == 0 or abs(vn) * model.e < rest_velocity
+    e = 0.0 if rest else model.e
     if model.n_t:
         cross = tangents.T @ minv_n[:, 0]
         w_t = tangents.T @ minv_b
@@ -387,12 +449,19 @@ def _impact(model: _Model, x: np.ndarray, u: np.ndarray, rest_velocity: float):
         if np.abs(cross).max() > 1e-9 * scale or np.abs(w_t - w * np.eye(model.n_t)).max() > (
             1e-9 * scale
         ):
+            if model.n_t == 1 and e == 0.0:
+                delassus_2 = jac.T @ minv_jac
+                lam_n, lam_t = _planar_impulse_flow(delassus_2, vn, float(tangents[:, 0] @ v),
+                                                    model.mu)
+                x = x.copy()
+                x[n:] = v + minv_jac @ np.array([lam_n, lam_t])
+                x[n:] -= minv_n[:, 0] * (normal[:, 0] @ x[n:]) / delassus
+                return x, float(lam_n), np.array([lam_t]), True
             raise IncompatibleOptions(
-                "`simulate_impacts` needs B^T M^{-1} n = 0 and B^T M^{-1} B = w I at contact; "
+                "`simulate_impacts` needs B^T M^{-1} n = 0 and B^T M^{-1} B = w I at an "
+                "elastic or 3-D frictional impact; "
                 f"got B^T M^-1 n = {cross}, B^T M^-1 B = {w_t.tolist()}"
             )
-    rest = model.e == 0 or abs(vn) * model.e < rest_velocity
-    e = 0.0 if rest else model.e
     lam_n = -(1 + e) * min(vn, 0.0) / delassus
     lam_t = np.zeros(model.n_t)
     if model.n_t:
