@@ -153,8 +153,12 @@ def main() -> None:
                   f"iteration ratio: {rows[1]['iterations'] / max(rows[0]['iterations'], 1):.2f}"]
     text = "\n".join(lines) + "\n"
     print(text)
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(text)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    # Keep the hand-written analysis (every section after the table) across reruns.
+    old = out.read_text() if out.is_file() else ""
+    notes = old[old.index("\n## "):] if "\n## " in old else ""
+    out.write_text(text + notes)
 
 
 if __name__ == "__main__":
