@@ -276,7 +276,8 @@ class ContactResult:
             f"{o.total_iterations}   complementarity residual: {o.residual:.2e}",
             f"wall time: build {t['build']:.2f} s, solve {t['solve']:.2f} s, "
             f"verify {t['verify']:.2f} s",
-            f"impacts at t = {np.round(self.physical.impact_times, 4).tolist()} s",
+            f"impacts (fully frozen pieces of the plan) at t = "
+            f"{np.round(self.physical.impact_times, 4).tolist()} s",
             self.verification.summary(),
         ])
 
