@@ -390,6 +390,25 @@ def test_reference_simulator_coulomb_stop_and_lift_off():
     assert sim.modes[2][0] == pytest.approx(1.5, abs=1e-9)
 
 
+def test_reference_simulator_decides_the_mode_anew_at_control_breakpoints():
+    """A block at rest, stuck by friction (mu = 0.3); at t = 0.5 s the piecewise constant
+    push jumps to 5 N sideways (slip, a = 5 - mu g) or to 2 m g upwards (lift-off)."""
+    mu, t_jump, T = 0.3, 0.5, 1.0
+    cls = point_mass(2, mu=mu, controlled=True)
+    side = simulate_impacts(cls, [0, 0, 0, 0], lambda t: np.array([5.0 * (t >= t_jump), 0.0]),
+                            T, breakpoints=[t_jump])
+    assert [m for _, m in side.modes] == ["stick", "slip"]
+    assert side.modes[1][0] == t_jump
+    accel = 5.0 - mu * G
+    np.testing.assert_allclose(side.final_state(), [0.5 * accel * (T - t_jump) ** 2, 0.0,
+                                                    accel * (T - t_jump), 0.0], atol=1e-9)
+    up = simulate_impacts(cls, [0, 0, 0, 0], lambda t: np.array([0.0, 2 * G * (t >= t_jump)]),
+                          T, breakpoints=[t_jump])
+    assert [m for _, m in up.modes] == ["stick", "free"]
+    np.testing.assert_allclose(up.final_state(), [0.0, 0.5 * G * (T - t_jump) ** 2, 0.0,
+                                                  G * (T - t_jump)], atol=1e-9)
+
+
 # ----------------------------------------------------------------------------- FESD simulations
 #
 # The whole chain: builder -> FESD simulator (Radau IIA) -> physical time. The inelastic

@@ -214,8 +214,15 @@ def simulate_impacts(
     while t_cur < T:
         if not modes or modes[-1][1] != mode:
             modes.append((t_cur, mode))
-        rhs, events = _phase(model, mode, direction, control, x_cur)
         t_stop = next(b for b in stops if b > t_cur)
+        # Within a segment the control is its left limit at the segment's end, so that a
+        # jump at t_stop is not seen (as an event) before the breakpoint.
+        t_left = float(np.nextafter(t_stop, -np.inf))
+
+        def segment_control(t: float, t_left: float = t_left) -> np.ndarray:
+            return control(min(t, t_left))
+
+        rhs, events = _phase(model, mode, direction, segment_control, x_cur)
         with np.errstate(under="ignore"):  # scipy's step-size floor at t = 0 underflows
             sol = solve_ivp(rhs, (t_cur, t_stop), x_cur, method="DOP853", rtol=rtol,
                             atol=atol, events=events, max_step=max_step)
