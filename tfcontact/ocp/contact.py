@@ -186,13 +186,14 @@ class ContactSolverOptions:
             `simulate_impacts`: one contact), "fesd" (the FESD simulator on a finer grid)
             or "auto" (the reference where it applies, else FESD).
         verify_refinement: the FESD re-simulation uses this many steps per control interval.
-        verify_scheme: the re-simulation's IRK scheme.
-        verify_relaxation: the re-simulation's relaxation (`L1Penalty()` needs one or two
-            NLPs per step where Scholtes needs one per decade of sigma).
+        verify_scheme: the FESD re-simulation's IRK scheme.
+        verify_relaxation: the FESD re-simulation's relaxation (`L1Penalty()` needs one or
+            two NLPs per step where Scholtes needs one per decade of sigma).
         end_state_tolerance, gap_tolerance, cone_tolerance, clock_tolerance: the checks'
             tolerances (see `Verification`); `cone_tolerance` is relative to the largest
-            normal impulse of the plan, because the impulses recovered from the discrete
-            momentum balance carry the trapezoidal rule's error, proportional to them.
+            normal impulse of the plan, because the impulses recovered from the plan's
+            collocation polynomials carry its relaxed complementarity and quadrature
+            errors, proportional to them.
     """
 
     scheme: Scheme = field(default_factory=lambda: RadauIIA(2))
