@@ -222,7 +222,7 @@ def simulate_impacts(
         def segment_control(t: float, t_left: float = t_left) -> np.ndarray:
             return control(min(t, t_left))
 
-        rhs, events = _phase(model, mode, direction, segment_control, x_cur)
+        rhs, events = _phase(model, mode, direction, segment_control)
         with np.errstate(under="ignore"):  # scipy's step-size floor at t = 0 underflows
             sol = solve_ivp(rhs, (t_cur, t_stop), x_cur, method="DOP853", rtol=rtol,
                             atol=atol, events=events, max_step=max_step)
@@ -264,7 +264,7 @@ def simulate_impacts(
     )
 
 
-def _split(model: _Model, minv_jac: np.ndarray, jac: np.ndarray):
+def _split(minv_jac: np.ndarray, jac: np.ndarray):
     return minv_jac[:, :1], minv_jac[:, 1:], jac[:, :1], jac[:, 1:]
 
 
@@ -278,7 +278,7 @@ def _stick_forces(model: _Model, x: np.ndarray, u: np.ndarray) -> np.ndarray:
 
 def _slip_normal_force(model: _Model, x: np.ndarray, u: np.ndarray, that: np.ndarray) -> float:
     a_free, minv_jac, jac, drift, _ = model.terms(x, u)
-    minv_n, minv_b, normal, _ = _split(model, minv_jac, jac)
+    minv_n, minv_b, normal, _ = _split(minv_jac, jac)
     phi = normal[:, 0] @ a_free + drift[0]
     effective = normal[:, 0] @ minv_n[:, 0]
     if model.n_t:
@@ -324,7 +324,7 @@ def _zero_tangential(model: _Model, x: np.ndarray, u: np.ndarray) -> np.ndarray:
     return x
 
 
-def _phase(model: _Model, mode: str, direction, control, x_start):
+def _phase(model: _Model, mode: str, direction, control):
     n = model.n
     mu = model.mu
 
@@ -442,42 +442,40 @@ def _planar_impulse_flow(w: np.ndarray, vn: float, vt: float, mu: float):
 def _impact(model: _Model, x: np.ndarray, u: np.ndarray, rest_velocity: float):
     n = model.n
     _, minv_jac, jac, _, _ = model.terms(x, u)
-    minv_n, minv_b, normal, tangents = _split(model, minv_jac, jac)
+    minv_n, minv_b, normal, tangents = _split(minv_jac, jac)
     v = x[n:]
     vn = float(normal[:, 0] @ v)
     delassus = float(normal[:, 0] @ minv_n[:, 0])
     scale = max(1.0, float(np.abs(minv_jac).max()))
     rest = model.e == 0 or abs(vn) * model.e < rest_velocity
     e = 0.0 if rest else model.e
+    orthogonal = True
     if model.n_t:
         cross = tangents.T @ minv_n[:, 0]
         w_t = tangents.T @ minv_b
         w = float(np.mean(np.diag(w_t)))
-        if np.abs(cross).max() > 1e-9 * scale or np.abs(w_t - w * np.eye(model.n_t)).max() > (
-            1e-9 * scale
-        ):
-            if model.n_t == 1 and e == 0.0:
-                delassus_2 = jac.T @ minv_jac
-                lam_n, lam_t = _planar_impulse_flow(delassus_2, vn, float(tangents[:, 0] @ v),
-                                                    model.mu)
-                x = x.copy()
-                x[n:] = v + minv_jac @ np.array([lam_n, lam_t])
-                x[n:] -= minv_n[:, 0] * (normal[:, 0] @ x[n:]) / delassus
-                return x, float(lam_n), np.array([lam_t]), True
+        orthogonal = (np.abs(cross).max() <= 1e-9 * scale
+                      and np.abs(w_t - w * np.eye(model.n_t)).max() <= 1e-9 * scale)
+        if not orthogonal and not (model.n_t == 1 and e == 0.0):
             raise IncompatibleOptions(
                 "`simulate_impacts` needs B^T M^{-1} n = 0 and B^T M^{-1} B = w I at an "
                 "elastic or 3-D frictional impact; "
                 f"got B^T M^-1 n = {cross}, B^T M^-1 B = {w_t.tolist()}"
             )
-    lam_n = -(1 + e) * min(vn, 0.0) / delassus
-    lam_t = np.zeros(model.n_t)
-    if model.n_t:
-        vt = tangents.T @ v
-        stick = -vt / w
-        if np.linalg.norm(stick) <= model.mu * lam_n:
-            lam_t = stick
-        else:
-            lam_t = -model.mu * lam_n * vt / np.linalg.norm(vt)
+    if not orthogonal:  # an inelastic planar contact coupled through M(q): a leg
+        lam_n, lam_t_1 = _planar_impulse_flow(jac.T @ minv_jac, vn,
+                                              float(tangents[:, 0] @ v), model.mu)
+        lam_t = np.array([lam_t_1])
+    else:
+        lam_n = -(1 + e) * min(vn, 0.0) / delassus
+        lam_t = np.zeros(model.n_t)
+        if model.n_t:
+            vt = tangents.T @ v
+            stick = -vt / w
+            if np.linalg.norm(stick) <= model.mu * lam_n:
+                lam_t = stick
+            else:
+                lam_t = -model.mu * lam_n * vt / np.linalg.norm(vt)
     x = x.copy()
     x[n:] = v + minv_n[:, 0] * lam_n + (minv_b @ lam_t if model.n_t else 0.0)
     if rest:  # exactly on the contact surface's velocity constraint
