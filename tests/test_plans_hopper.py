@@ -1,6 +1,7 @@
 """The README's main job end to end: `tfcontact plan hopper --out DIR` (slow, CI runs it)."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -58,5 +59,5 @@ def test_hopper_plan_passes_the_independent_verification(hopper_plan):
     # Checked against the event-detecting simulation of the original system, which lands
     # the hopper with real impacts (touch-downs after the flight phases).
     assert verification["method"].startswith("event-detecting reference")
-    assert "0 impacts" not in verification["method"]
+    assert int(re.search(r"(\d+) impacts", verification["method"]).group(1)) >= 1
     assert verification["end_state_deviation"] <= verification["tolerances"]["end_state"]
