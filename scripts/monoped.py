@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from tfcontact.fesd import RadauIIA
-from tfcontact.mpcc import Homotopy, Ipopt, LinfPenalty, Scholtes
+from tfcontact.mpcc import RELAXATIONS, Homotopy, Ipopt
 from tfcontact.ocp.contact import ContactResult, ContactSolverOptions, solve_contact
 from tfcontact.robot import RobotSpec
 from tfcontact.scenes.monoped import (
@@ -48,7 +48,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def solver_options(args: argparse.Namespace) -> ContactSolverOptions:
-    relaxation = LinfPenalty() if args.relaxation == "linf" else Scholtes()
+    relaxation = RELAXATIONS[args.relaxation]()
     ipopt = {"mu_strategy": args.mu_strategy}
     return ContactSolverOptions(
         scheme=RadauIIA(args.stages), n_finite_elements=args.n_fe, relaxation=relaxation,
@@ -226,7 +226,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--n-intervals", type=int, default=None)
     parser.add_argument("--stages", type=int, default=None)
     parser.add_argument("--n-fe", type=int, default=3)
-    parser.add_argument("--relaxation", choices=("scholtes", "linf"), default="scholtes")
+    parser.add_argument("--relaxation", choices=sorted(RELAXATIONS), default="scholtes")
     parser.add_argument("--sigma0", type=float, default=1.0)
     parser.add_argument("--kappa", type=float, default=0.1)
     parser.add_argument("--comp-tol", type=float, default=1e-7)

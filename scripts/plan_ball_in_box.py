@@ -26,15 +26,13 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from tfcontact.fesd import RadauIIA
-from tfcontact.mpcc import Homotopy, LinfPenalty, Scholtes
+from tfcontact.mpcc import RELAXATIONS, Homotopy
 from tfcontact.ocp.contact import ContactSolverOptions, solve_contact
-from tfcontact.robot import ContactSpec, RobotSpec
 from tfcontact.scenes.ball_in_box import TF2_WALLS, circle_reference
-from tfcontact.scenes.particle_ocps import box_circle_problem
+from tfcontact.scenes.particle_ocps import BALL_RADIUS, BALL_ROBOT, box_circle_problem
 from tfcontact.viz.plan import save_plan, trajectory_from_result
 
 RADIUS = 1.0
-BALL = RobotSpec(source="ball", base="planar_xz", contacts=(ContactSpec("ball", 0.05),))
 # (x, y) of the problem is (x, z) of the viewer; world normals of the walls (into the box)
 DIRECTIONS = [(np.array(n, float), np.zeros((3, 0)))
               for n in ((0, 0, 1), (-1, 0, 0), (0, 0, -1), (1, 0, 0))]
@@ -43,7 +41,7 @@ DIRECTIONS = [(np.array(n, float), np.zeros((3, 0)))
 def scene() -> dict:
     """Four wall slabs, 5 cm off the point-mass walls (the drawn ball has r = 5 cm)."""
     b, r, t, left = TF2_WALLS
-    thick, r_ball = 0.05, 0.05
+    thick, r_ball = 0.05, BALL_RADIUS
     width, height = r + left + 2 * (r_ball + thick), t + b + 2 * (r_ball + thick)
     cx, cz = (r - left) / 2, (t - b) / 2
     return {"terrain": {"type": "none"}, "boxes": [
@@ -91,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--omega", type=float, default=1.0, help="w / pi [-]")
     parser.add_argument("--out", default=None, help="output folder")
     parser.add_argument("--n-intervals", type=int, default=25, help="control intervals N")
-    parser.add_argument("--relaxation", choices=("linf", "scholtes"), default="linf")
+    parser.add_argument("--relaxation", choices=sorted(RELAXATIONS), default="linf")
     parser.add_argument("--sigma0", type=float, default=1e-3,
                         help="first relaxation parameter (the plan starts on the reference)")
     parser.add_argument("--quiet", action="store_true", help="no homotopy progress lines")
@@ -101,14 +99,14 @@ def main(argv: list[str] | None = None) -> int:
     problem = box_circle_problem(omega, radius=RADIUS, n_intervals=args.n_intervals)
     options = ContactSolverOptions(
         scheme=RadauIIA(2), n_finite_elements=3,
-        relaxation=LinfPenalty() if args.relaxation == "linf" else Scholtes(),
+        relaxation=RELAXATIONS[args.relaxation](),
         homotopy=Homotopy(sigma_0=args.sigma0, tolerance=1e-7))
     result = solve_contact(problem, options, verbose=not args.quiet)
     if args.quiet:
         print(result.summary())
     print(f"w = {args.omega:g} pi: {len(result.physical.impacts)} impact(s), max tracking "
           f"error {tracking_error(result, omega):.3f} m")
-    traj = trajectory_from_result(result, BALL, scene(), directions=DIRECTIONS)
+    traj = trajectory_from_result(result, BALL_ROBOT, scene(), directions=DIRECTIONS)
     files = save_plan(result, traj, out)
     files.append(plot_path(result, omega, out))
     print(f"wrote {len(files)} files to {out}/")

@@ -15,28 +15,23 @@ import sys
 import numpy as np
 
 from tfcontact.fesd import RadauIIA
-from tfcontact.mpcc import LinfPenalty, Scholtes
+from tfcontact.mpcc import RELAXATIONS
 from tfcontact.ocp.contact import ContactSolverOptions, solve_contact
-from tfcontact.robot import ContactSpec, RobotSpec
-from tfcontact.scenes.particle_ocps import particle_friction_problem
+from tfcontact.scenes.particle_ocps import BALL_GROUND, BALL_ROBOT, particle_friction_problem
 from tfcontact.viz.plan import save_plan, trajectory_from_result
-
-BALL = RobotSpec(source="ball", base="planar_xz", contacts=(ContactSpec("ball", 0.05),))
-# the point mass touches the ground with its centre: draw the 5 cm ball on a floor 5 cm lower
-SCENE = {"terrain": {"type": "flat", "height": -0.05}}
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="out/particle_friction", help="output folder")
     parser.add_argument("--n-intervals", type=int, default=20, help="control intervals N")
-    parser.add_argument("--relaxation", choices=("linf", "scholtes"), default="linf")
+    parser.add_argument("--relaxation", choices=sorted(RELAXATIONS), default="linf")
     parser.add_argument("--quiet", action="store_true", help="no homotopy progress lines")
     args = parser.parse_args(argv)
     problem = particle_friction_problem(n_intervals=args.n_intervals)
     options = ContactSolverOptions(
         scheme=RadauIIA(3), n_finite_elements=3,
-        relaxation=LinfPenalty() if args.relaxation == "linf" else Scholtes())
+        relaxation=RELAXATIONS[args.relaxation]())
     result = solve_contact(problem, options, verbose=not args.quiet)
     if args.quiet:
         print(result.summary())
@@ -44,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     tf = result.system
     state = np.concatenate([end[tf.q_index], end[tf.v_index]])
     print(f"x(T) = {np.round(state, 6).tolist()} (target [3, 0, 0, 0])")
-    traj = trajectory_from_result(result, BALL, SCENE)
+    traj = trajectory_from_result(result, BALL_ROBOT, BALL_GROUND)
     files = save_plan(result, traj, args.out)
     print(f"wrote {len(files)} files to {args.out}/")
     return 0 if result.success else 1

@@ -22,14 +22,11 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from tfcontact.fesd import RadauIIA
-from tfcontact.mpcc import LinfPenalty, Scholtes
+from tfcontact.mpcc import RELAXATIONS
 from tfcontact.ocp.contact import ContactSolverOptions, solve_contact
-from tfcontact.robot import ContactSpec, RobotSpec
-from tfcontact.scenes.particle_ocps import throwing_ball_problem
+from tfcontact.scenes.particle_ocps import BALL_GROUND, BALL_ROBOT, throwing_ball_problem
 from tfcontact.viz.plan import save_plan, trajectory_from_result
 
-BALL = RobotSpec(source="ball", base="planar_xz", contacts=(ContactSpec("ball", 0.05),))
-SCENE = {"terrain": {"type": "flat", "height": -0.05}}  # the centre touches z = 0
 TARGET = (4.0, 0.5)
 
 
@@ -60,20 +57,20 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="out/throwing_ball", help="output folder")
     parser.add_argument("--n-intervals", type=int, default=20, help="control intervals N")
-    parser.add_argument("--relaxation", choices=("linf", "scholtes"), default="linf")
+    parser.add_argument("--relaxation", choices=sorted(RELAXATIONS), default="linf")
     parser.add_argument("--quiet", action="store_true", help="no homotopy progress lines")
     args = parser.parse_args(argv)
     problem = throwing_ball_problem(TARGET, n_intervals=args.n_intervals)
     options = ContactSolverOptions(
         scheme=RadauIIA(4), n_finite_elements=5,
-        relaxation=LinfPenalty() if args.relaxation == "linf" else Scholtes())
+        relaxation=RELAXATIONS[args.relaxation]())
     result = solve_contact(problem, options, verbose=not args.quiet)
     if args.quiet:
         print(result.summary())
     q_end = result.y[-1, result.system.q_index]
     print(f"q(T) = {np.round(q_end, 6).tolist()} (target {list(TARGET)}), "
           f"{len(result.physical.impacts)} impact(s)")
-    traj = trajectory_from_result(result, BALL, SCENE)
+    traj = trajectory_from_result(result, BALL_ROBOT, BALL_GROUND)
     files = save_plan(result, traj, args.out)
     files.append(plot_path(result, Path(args.out)))
     print(f"wrote {len(files)} files to {args.out}/")

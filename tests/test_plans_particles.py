@@ -17,18 +17,15 @@ from tfcontact.errors import InvalidInput
 from tfcontact.fesd import RadauIIA, simulate
 from tfcontact.mpcc import Homotopy, Ipopt, LinfPenalty
 from tfcontact.ocp.contact import ContactProblem, ContactSolverOptions, solve_contact
-from tfcontact.robot import ContactSpec, RobotSpec
 from tfcontact.scenes.ball_in_box import TF2_WALLS, WALLS, ball_in_box
 from tfcontact.scenes.particle_ocps import (
+    BALL_ROBOT,
     box_circle_problem,
     particle_friction_problem,
     throwing_ball_problem,
 )
 from tfcontact.viz import load_trajectory
 from tfcontact.viz.plan import save_plan, trajectory_from_result
-
-BALL = RobotSpec(source="ball", base="planar_xz", contacts=(ContactSpec("ball", 0.05),))
-
 
 # ---------------------------------------------------------------- the box, fast
 
@@ -132,7 +129,7 @@ def test_box_slow_circle_touches_no_wall(tmp_path):
     assert result.ocp.n_nlps == 1
     assert result.ocp.cost < 0.1
     # the plan's file: one robot contact (the ball) for four walls
-    traj = trajectory_from_result(result, BALL, {"terrain": {"type": "none"}})
+    traj = trajectory_from_result(result, BALL_ROBOT, {"terrain": {"type": "none"}})
     assert traj.gap.shape == (traj.n_samples, 1)
     assert traj.extras["cls_gaps"].shape == (traj.n_samples, 4)
     np.testing.assert_allclose(traj.gap[:, 0], traj.extras["cls_gaps"].min(axis=1))

@@ -1,7 +1,7 @@
 """MPCCs: relaxations and the homotopy that solves them with IPOPT."""
 
 from tfcontact.mpcc.problem import Mpcc
-from tfcontact.mpcc.relaxation import L1Penalty, LinfPenalty, Relaxation, Scholtes
+from tfcontact.mpcc.relaxation import RELAXATIONS, L1Penalty, LinfPenalty, Relaxation, Scholtes
 from tfcontact.mpcc.solver import (
     Homotopy,
     HomotopyStep,
@@ -13,6 +13,7 @@ from tfcontact.mpcc.solver import (
 )
 
 __all__ = [
+    "RELAXATIONS",
     "Homotopy",
     "HomotopyStep",
     "Ipopt",

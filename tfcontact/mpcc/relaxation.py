@@ -102,3 +102,9 @@ class LinfPenalty(Relaxation):
             g=products - s, lbg=np.full(n, -np.inf), ubg=np.zeros(n),
             objective=s / sigma,
         )
+
+
+# The relaxations by the short names scripts and command lines use.
+RELAXATIONS: dict[str, type[Relaxation]] = {
+    "scholtes": Scholtes, "l1": L1Penalty, "linf": LinfPenalty,
+}

@@ -17,10 +17,17 @@ import numpy as np
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp.contact import ContactProblem
 from tfcontact.ocp.problem import Constraint
+from tfcontact.robot import ContactSpec, RobotSpec
 from tfcontact.scenes.ball_in_box import TF2_WALLS, ball_in_box, circle_reference
 from tfcontact.scenes.particles import G, point_mass
 from tfcontact.timefreezing import Elastic, time_freeze
 
+BALL_RADIUS = 0.05  # [m], robots/ball.urdf
+# How the plans' point masses are drawn: the project's ball on an x-z base.
+BALL_ROBOT = RobotSpec(source="ball", base="planar_xz",
+                       contacts=(ContactSpec("ball", BALL_RADIUS),))
+# The point mass touches the ground with its centre: the ball's floor lies a radius lower.
+BALL_GROUND = {"terrain": {"type": "flat", "height": -BALL_RADIUS}}
 
 def box_circle_problem(
     omega: float = math.pi,
