@@ -69,6 +69,12 @@ class HopperTask:
 _Q = (50.0, 50.0, 20.0, 50.0, 0.1, 0.1, 0.1, 0.1)
 _Q_T = (300.0, 300.0, 300.0, 300.0, 0.1, 0.1, 0.1, 0.1)
 _ZERO_V = (0.0, 0.0, 0.0, 0.0)
+# State box (q, v): only the largest base x differs between the tasks.
+_LOWER = (0.0, 0.0, -np.pi, 0.1, -10, -10, -5, -5)
+
+
+def _upper(x_max: float) -> tuple[float, ...]:
+    return (x_max, 1.5, np.pi, 0.5, 10, 10, 5, 5)
 
 
 def hopper_task(name: str = "short") -> HopperTask:
@@ -80,8 +86,8 @@ def hopper_task(name: str = "short") -> HopperTask:
             waypoints=((0.1, 0.5, 0.0, 0.5) + _ZERO_V, (0.4, 0.8, 0.0, 0.1) + _ZERO_V,
                        (0.7, 0.5, 0.0, 0.5) + _ZERO_V),
             state_weights=_Q, terminal_weights=_Q_T, control_weights=(0.01, 0.01),
-            lower=(0.0, 0.0, -np.pi, 0.1, -10, -10, -5, -5),
-            upper=(0.8, 1.5, np.pi, 0.5, 10, 10, 5, 5),
+            lower=_LOWER,
+            upper=_upper(0.8),
         )
     if name == "long":
         return HopperTask(
@@ -90,8 +96,8 @@ def hopper_task(name: str = "short") -> HopperTask:
                        (0.6, 0.5, 0.0, 0.5) + _ZERO_V, (0.9, 0.65, 0.0, 0.2) + _ZERO_V,
                        (1.3, 0.5, 0.0, 0.5) + _ZERO_V),
             state_weights=_Q, terminal_weights=_Q_T, control_weights=(0.001, 0.001),
-            lower=(0.0, 0.0, -np.pi, 0.1, -10, -10, -5, -5),
-            upper=(2.0, 1.5, np.pi, 0.5, 10, 10, 5, 5),
+            lower=_LOWER,
+            upper=_upper(2.0),
         )
     if name == "bench":
         return HopperTask(
@@ -100,8 +106,8 @@ def hopper_task(name: str = "short") -> HopperTask:
                        (1.0, 0.5, 0.0, 0.5) + _ZERO_V),
             state_weights=(100.0, 100.0, 20.0, 50.0, 0.1, 0.1, 0.1, 0.1),
             terminal_weights=_Q_T, control_weights=(0.01, 0.01),
-            lower=(0.0, 0.0, -np.pi, 0.1, -10, -10, -5, -5),
-            upper=(1.1, 1.5, np.pi, 0.5, 10, 10, 5, 5),
+            lower=_LOWER,
+            upper=_upper(1.1),
         )
     raise InvalidInput(f"unknown hopper task `{name}`; use `short`, `long` or `bench`")
 
