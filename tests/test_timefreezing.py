@@ -390,6 +390,31 @@ def test_reference_simulator_coulomb_stop_and_lift_off():
     assert sim.modes[2][0] == pytest.approx(1.5, abs=1e-9)
 
 
+@pytest.mark.parametrize("breakpoint_before_stop", [None, 1e-7])
+def test_reference_simulator_planar_slip_stops_at_the_event(breakpoint_before_stop):
+    """A block sliding at 1 m/s (mu = 0.3) stops at t = v0 / (mu g). The slip phase keeps
+    its friction direction up to the stop event, so no step straddles a jump of the rhs:
+    few evaluations and an exact stop time, also when a control breakpoint 0.1 us before
+    the stop restarts the phase with |v_t| = 3e-7 m/s."""
+    mu, v0 = 0.3, 1.0
+    stop = v0 / (mu * G)
+    breakpoints = [] if breakpoint_before_stop is None else [stop - breakpoint_before_stop]
+    sim = simulate_impacts(point_mass(2, mu=mu, controlled=True), [0, 0, v0, 0],
+                           lambda t: np.zeros(2), 1.0, breakpoints=breakpoints)
+    assert [m for _, m in sim.modes] == ["slip", "stick"]
+    assert sim.modes[1][0] == pytest.approx(stop, abs=1e-14)
+    assert sim.n_rhs < 600  # the sign-following friction took 1000-1800
+    np.testing.assert_allclose(sim.final_state(), [v0**2 / (2 * mu * G), 0, 0, 0], atol=1e-12)
+
+
+def test_reference_simulator_stops_at_its_evaluation_budget():
+    sim = simulate_impacts(point_mass(1), [1.0, 0.0], None, 1.0, max_rhs_evaluations=50)
+    assert sim.status == "max_rhs_evaluations" and "50 model evaluations" in sim.message
+    assert sim.t[-1] < drop_time(1.0)
+    with pytest.raises(InvalidInput, match="max_rhs_evaluations"):
+        simulate_impacts(point_mass(1), [1.0, 0.0], None, 1.0, max_rhs_evaluations=0)
+
+
 def test_reference_simulator_decides_the_mode_anew_at_control_breakpoints():
     """A block at rest, stuck by friction (mu = 0.3); at t = 0.5 s the piecewise constant
     push jumps to 5 N sideways (slip, a = 5 - mu g) or to 2 m g upwards (lift-off)."""

@@ -77,7 +77,8 @@ class ReferenceSimulation:
         x: states (q, v), shape (K, 2 n_q).
         impacts: the impacts in order.
         modes: (start time [s], mode) for every phase: "free", "slip" or "stick".
-        status: "success" or "max_events" (stopped early, see `message`).
+        status: "success", "max_events" or "max_rhs_evaluations" (stopped early, see
+            `message`).
         message: what happened.
         n_rhs: right-hand-side evaluations.
     """
@@ -96,6 +97,10 @@ class ReferenceSimulation:
 
     def final_state(self) -> np.ndarray:
         return self.x[-1].copy()
+
+
+class _BudgetExceeded(Exception):
+    """The simulation used up its evaluation budget (caught in `simulate_impacts`)."""
 
 
 class _Model:
@@ -122,9 +127,12 @@ class _Model:
             [cls.acceleration, minv_jac, jac, ca.vertcat(drift_n, drift_t), contact.gap],
         )
         self.calls = 0
+        self.max_calls = math.inf
 
     def terms(self, x: np.ndarray, u: np.ndarray):
         self.calls += 1
+        if self.calls > self.max_calls:
+            raise _BudgetExceeded
         q, v = x[: self.n], x[self.n :]
         a_free, minv_jac, jac, drift, gap = (np.asarray(r) for r in self.fun(q, v, u))
         return a_free.ravel(), minv_jac, jac, drift.ravel(), float(gap.ravel()[0])
@@ -139,6 +147,7 @@ def simulate_impacts(
     rtol: float = 1e-11,
     atol: float = 1e-12,
     max_events: int = 200,
+    max_rhs_evaluations: int = 2_000_000,
     rest_velocity: float = 1e-7,
     max_step: float = np.inf,
     breakpoints: Sequence[float] = (),
@@ -155,6 +164,9 @@ def simulate_impacts(
     Other arguments:
         rtol, atol: solve_ivp tolerances (DOP853).
         max_events: stop (status "max_events") after this many mode changes.
+        max_rhs_evaluations: stop (status "max_rhs_evaluations") after this many
+            evaluations of the model, so that a step size collapsing near a singular
+            configuration ends the simulation instead of hanging it.
         rest_velocity: an impact with |v_n-| below it [m/s] ends in persistent contact.
         max_step: solve_ivp's max_step [s] (limit it when u_of_t has kinks).
         breakpoints: times [s] where u_of_t jumps (a piecewise constant control): each
@@ -176,7 +188,10 @@ def simulate_impacts(
         )
     if not (math.isfinite(T) and T > 0):
         raise InvalidInput(f"`T` must be finite and > 0, got {T!r}")
+    if max_rhs_evaluations < 1:
+        raise InvalidInput(f"`max_rhs_evaluations` must be at least 1, got {max_rhs_evaluations}")
     model = _Model(cls)
+    model.max_calls = max_rhs_evaluations
     x0 = np.asarray(x0, dtype=float).ravel()
     if x0.shape != (2 * model.n,):
         raise InvalidInput(f"`x0` must have shape ({2 * model.n},), got {x0.shape}")
@@ -223,9 +238,15 @@ def simulate_impacts(
             return control(min(t, t_left))
 
         rhs, events = _phase(model, mode, direction, segment_control)
-        with np.errstate(under="ignore"):  # scipy's step-size floor at t = 0 underflows
-            sol = solve_ivp(rhs, (t_cur, t_stop), x_cur, method="DOP853", rtol=rtol,
-                            atol=atol, events=events, max_step=max_step)
+        try:
+            with np.errstate(under="ignore"):  # scipy's step-size floor at t = 0 underflows
+                sol = solve_ivp(rhs, (t_cur, t_stop), x_cur, method="DOP853", rtol=rtol,
+                                atol=atol, events=events, max_step=max_step)
+        except _BudgetExceeded:
+            status = "max_rhs_evaluations"
+            message = (f"stopped after {max_rhs_evaluations} model evaluations in mode "
+                       f"{mode}, in ({t_cur:.6g}, {t_stop:.6g}) s")
+            break
         if sol.status == -1:
             raise InvalidInput(f"reference integration failed in mode {mode}: {sol.message}")
         ts.append(sol.t[1:])
@@ -350,7 +371,11 @@ def _phase(model: _Model, mode: str, direction, control):
             if model.n_t == 0:
                 lam_n = -(jac[:, 0] @ a_free + drift[0]) / (jac[:, 0] @ minv_jac[:, 0])
                 return a_free + minv_jac[:, 0] * lam_n, lam_n
-            that = tangent_direction(jac[:, 1:].T @ x[n:])
+            # Planar slip keeps the phase's direction until the stop event: the sign of
+            # v_t would flip the rhs inside a step that overshoots v_t = 0, and the step
+            # size then collapses there instead of the event firing (measured: a hopper
+            # replay stalled at |v_t| = 2e-6 m/s).
+            that = direction if model.n_t == 1 else tangent_direction(jac[:, 1:].T @ x[n:])
             lam_n = _slip_normal_force(model, x, u, that)
             lam_t = -mu * lam_n * that
             return a_free + minv_jac[:, 0] * lam_n + minv_jac[:, 1:] @ lam_t, lam_n
