@@ -43,7 +43,7 @@ def _hopper(task: str | None):
     from tfcontact.scenes.hopper import hopper_options, hopper_problem
 
     robot, ground, problem = hopper_problem(task or "short")
-    return robot, ground, problem, hopper_options()
+    return robot, ground, problem, hopper_options(task or "short")
 
 
 PLANS: dict[str, Plan] = {
