@@ -61,3 +61,18 @@ def test_hopper_plan_passes_the_independent_verification(hopper_plan):
     assert verification["method"].startswith("event-detecting reference")
     assert int(re.search(r"(\d+) impacts", verification["method"]).group(1)) >= 1
     assert verification["end_state_deviation"] <= verification["tolerances"]["end_state"]
+
+
+def test_long_task_hops_twice_reaches_the_goal_and_passes_the_verification(tmp_path):
+    """TF-8's long task (`--task long`): two flight phases, x(T) near 1.3, verified against
+    the exact-impact replay (about 5 minutes)."""
+    code = main(["plan", "hopper", "--task", "long", "--out", str(tmp_path), "--quiet"])
+    sidecar = json.loads((tmp_path / "trajectory.json").read_text())
+    assert sidecar["verification"]["passed"] is True and code == 0
+    assert sidecar["verification"]["method"].startswith("event-detecting reference")
+    traj = load_trajectory(tmp_path / "trajectory.npz")
+    task = hopper_task("long")
+    airborne = traj.gap[:, 0] > 0.02
+    take_offs = np.count_nonzero(airborne[1:] & ~airborne[:-1])
+    assert take_offs >= 2
+    assert abs(traj.q[-1, 0] - task.x_end[0]) < 0.05
