@@ -4,10 +4,13 @@ import pytest
 from tfcontact.fesd import RadauIIA
 from tfcontact.fesd.tableau import as_tableau
 from tfcontact.ocp.verify import (
+    SLIP_THRESHOLD,
+    Verification,
     clock_checks,
     collocation_impulses,
     contact_impulses,
     friction_cone_violation,
+    maximal_dissipation_violation,
 )
 
 G = 9.81
@@ -119,3 +122,109 @@ def test_collocation_impulses_of_a_frozen_impact_have_no_smooth_part():
     x_start, x_stages, tab = collocated(state, h)
     impulses, _ = collocation_impulses_of(x_start, x_stages, h, tab)
     np.testing.assert_allclose(impulses.sum(axis=0), [MASS * 2.0, -MASS * 0.5], rtol=1e-12)
+
+
+def slip_samples(state_of_tau, h, tab):
+    """v_x (the tangential velocity of the ground contact) at each element's start, Radau
+    stages and end, shape (E, s + 2, 1)."""
+    starts = np.concatenate([[0.0], np.cumsum(h)[:-1]])
+    return np.array([[state_of_tau(a + c * dh)[2] for c in (0.0, *tab.c, 1.0)]
+                     for a, dh in zip(starts, h, strict=True)])[:, :, None]
+
+
+def sliding_state(deceleration, v0=3.0, s=1.0):
+    def state(tau):
+        t = s * tau
+        return np.array([v0 * t - 0.5 * deceleration * t**2, 0.0, v0 - deceleration * t, 0.0, t])
+    return state
+
+
+@pytest.mark.parametrize("speed_of_time", [1.0, 3.0])
+def test_coulomb_sliding_dissipates_maximally_and_reversed_friction_does_not(speed_of_time):
+    """Sliding at mu g deceleration the friction is -mu Lambda_n along the slip: no violation
+    on any of the 3 elements. Friction pushing along the slip stays inside the cone but
+    misses Coulomb's law by ||mu Lambda_n + mu Lambda_n|| = 2 mu m g s h."""
+    mu, s = 0.3, speed_of_time
+    state = sliding_state(mu * G, s=s)
+    h = np.array([0.01, 0.02, 0.015])
+    x_start, x_stages, tab = collocated(state, h)
+    impulses, _ = collocation_impulses_of(x_start, x_stages, h, tab)
+    slip = slip_samples(state, h, tab)
+    worst, checked = maximal_dissipation_violation(impulses, slip, [mu], [1])
+    assert worst < 1e-12 and checked == 3
+    along = impulses * [1.0, -1.0]
+    assert friction_cone_violation(along, [mu], [1]) < 1e-12
+    worst, checked = maximal_dissipation_violation(along, slip, [mu], [1])
+    assert worst == pytest.approx(2 * mu * MASS * G * s * h.max(), rel=1e-9) and checked == 3
+
+
+def test_friction_below_the_cone_edge_while_slipping_is_a_violation():
+    """Braking at half of mu g is inside the cone (the cone check passes) but dissipates
+    too little: the violation is mu Lambda_n - |Lambda_t| = 0.5 mu m g h."""
+    mu = 0.4
+    state = sliding_state(0.5 * mu * G)
+    h = np.array([0.01, 0.02])
+    x_start, x_stages, tab = collocated(state, h)
+    impulses, _ = collocation_impulses_of(x_start, x_stages, h, tab)
+    assert friction_cone_violation(impulses, [mu], [1]) < 1e-12
+    worst, checked = maximal_dissipation_violation(impulses, slip_samples(state, h, tab),
+                                                   [mu], [1])
+    assert worst == pytest.approx(0.5 * mu * MASS * G * h.max(), rel=1e-9) and checked == 2
+
+
+def test_an_element_whose_slip_reverses_is_not_checked():
+    """v_x = v_1 - mu g t through zero in the middle of the second element: the first element
+    (forward slip, friction backwards) is right; the second reverses and is skipped; in the
+    third the block slips backwards with the friction still backwards: 2 mu m g h_3."""
+    mu = 0.3
+    h = np.array([0.01, 0.02, 0.015])
+    state = sliding_state(mu * G, v0=0.02 * mu * G)  # v_x = 0 at t = 0.02
+    x_start, x_stages, tab = collocated(state, h)
+    impulses, _ = collocation_impulses_of(x_start, x_stages, h, tab)
+    slip = slip_samples(state, h, tab)
+    assert np.all(np.abs(slip[[0, 2]]) > SLIP_THRESHOLD)
+    worst, checked = maximal_dissipation_violation(impulses, slip, [mu], [1])
+    assert checked == 2
+    assert worst == pytest.approx(2 * mu * MASS * G * h[2], rel=1e-9)
+
+
+def test_a_sticking_element_is_not_checked():
+    """No friction under a normal impulse of 1 N s is Coulomb only while the contact sticks:
+    a slip below the threshold leaves it unchecked, a real slip makes it a violation mu."""
+    mu = 0.5
+    impulses = np.array([[1.0, 0.0]])
+    sticking = np.array([[[1e-4], [-2e-4], [5e-4], [1e-4]]])
+    assert maximal_dissipation_violation(impulses, sticking, [mu], [1]) == (0.0, 0)
+    slipping = np.full((1, 4, 1), 0.5)
+    assert maximal_dissipation_violation(impulses, slipping, [mu], [1]) == (
+        pytest.approx(mu), 1)
+
+
+def test_three_dimensional_slip_is_opposed_along_its_mean_direction():
+    """Contact 1 is frictionless (no tangent columns), contact 2 has two tangents: its slip
+    turns from 0.1 to 0.3 rad (mean direction 0.2 rad). Friction -mu Lambda_n d is right,
+    the same friction turned by 90 degrees misses by sqrt(2) mu Lambda_n, and a slip turning
+    by more than 90 degrees within the element is not checked."""
+    mu, normal = 0.5, 2.0
+
+    def slip_at(angles):
+        return np.column_stack([np.cos(angles), np.sin(angles)])[None]
+
+    turning = slip_at(np.array([0.1, 0.15, 0.25, 0.3]))
+    d = np.array([np.cos(0.2), np.sin(0.2)])
+    right = np.array([[3.0, normal, *(-mu * normal * d)]])  # (n_1, n_2, t_2a, t_2b)
+    worst, checked = maximal_dissipation_violation(right, turning, [0.0, mu], [0, 2])
+    assert worst < 1e-12 and checked == 1
+    turned = np.array([[3.0, normal, *(mu * normal * np.array([d[1], -d[0]]))]])
+    worst, _ = maximal_dissipation_violation(turned, turning, [0.0, mu], [0, 2])
+    assert worst == pytest.approx(np.sqrt(2) * mu * normal, rel=1e-12)
+    reversing = slip_at(np.array([0.0, 0.7, 1.4, 2.0]))
+    assert maximal_dissipation_violation(turned, reversing, [0.0, mu], [0, 2]) == (0.0, 0)
+
+
+def test_verification_without_a_dissipation_check_reports_nan():
+    v = Verification(passed=True, method="m", end_state_deviation=0.0, min_gap=0.0,
+                     friction_cone_violation=0.0, clock_monotone=True, clock_end_error=0.0)
+    assert np.isnan(v.dissipation_violation)
+    assert "maximal-dissipation violation nan N s" in v.summary()
+    assert np.isnan(v.to_dict()["dissipation_violation"])

@@ -32,10 +32,12 @@ from tfcontact.mpcc import Homotopy, Ipopt, MpccStatus, Relaxation, Scholtes
 from tfcontact.ocp.problem import Constraint, OptimalControlProblem
 from tfcontact.ocp.solve import OcpResult, Transcription, solve
 from tfcontact.ocp.verify import (
+    SLIP_THRESHOLD,
     Verification,
     clock_checks,
     collocation_impulses,
     friction_cone_violation,
+    maximal_dissipation_violation,
 )
 from tfcontact.timefreezing import (
     FROZEN_RATE_TOL,
@@ -399,7 +401,9 @@ def verify_plan(
     and compares the end states; checks the gaps on the plan, the friction cone of the
     contact impulses recovered from the momentum balance on the plan's collocation
     polynomials (M v' - f_v t' = J^T lambda, using the CLS's own M, f_v and contact
-    directions, not the time-freezing modes) and the clock.
+    directions, not the time-freezing modes), Coulomb's maximal dissipation of those
+    impulses where a closed contact slips (B^T v at the elements' starts, stages and ends)
+    and the clock.
     """
     cls = system.cls
     notes: list[str] = []
@@ -461,27 +465,46 @@ def verify_plan(
                                    [c.n_tangents for c in cls.contacts])
     normal_columns = np.cumsum([0] + [1 + c.n_tangents for c in cls.contacts])[:-1]
     largest_normal = float(np.max(impulses[:, normal_columns], initial=0.0))
+    impulse_tolerance = options.cone_tolerance * max(largest_normal, 1e-12)
     notes.append(f"friction-cone tolerance: {options.cone_tolerance:g} x the largest normal "
                  f"impulse {largest_normal:.3g} N s")
+    # The slip B_i^T v of each contact at every sample of every element; an open contact
+    # has no friction to check, so its slip is zeroed and the check skips it.
+    samples = np.concatenate([ocp.x[:-1, None], ocp.x_stages, ocp.x[1:, None]], axis=1)
+    flat = samples.reshape(-1, samples.shape[-1])
+    q_samples, v_samples = flat[:, system.q_index], flat[:, system.v_index]
+    closed = np.asarray(gap_fn(q_samples.T)).T <= options.gap_tolerance
+    slips = [np.zeros((len(flat), 0))]
+    for i, contact in enumerate(cls.contacts):
+        if contact.n_tangents:
+            slip_i = np.array([np.asarray(tangents[i](qk)).T @ vk
+                               for qk, vk in zip(q_samples, v_samples, strict=True)])
+            slips.append(slip_i * closed[:, i : i + 1])
+    slip = np.hstack(slips).reshape(*samples.shape[:2], sum(c.n_tangents for c in cls.contacts))
+    dissipation, n_slipping = maximal_dissipation_violation(
+        impulses, slip, [c.mu for c in cls.contacts], [c.n_tangents for c in cls.contacts])
+    notes.append(f"maximal dissipation checked on {n_slipping} slipping element-contacts "
+                 f"(|B^T v| > {SLIP_THRESHOLD:g} m/s throughout, one direction)")
     monotone, clock_error = clock_checks(ocp.x[:, system.clock_index], problem.horizon,
                                          options.clock_tolerance)
     # What the closed contacts cannot explain is the discretisation error of the plan (or a
     # force the model lacks); report it on the same relative scale as the cone check.
     unexplained = float(np.max(fit, initial=0.0))
-    if unexplained > options.cone_tolerance * max(largest_normal, 1e-12):
+    if unexplained > impulse_tolerance:
         notes.append(f"momentum balance not explained by the contacts up to "
                      f"{unexplained:.2e} N s")
     tolerances = {"end_state": options.end_state_tolerance, "gap": options.gap_tolerance,
-                  "cone": options.cone_tolerance, "clock": options.clock_tolerance}
+                  "cone": options.cone_tolerance, "dissipation": options.cone_tolerance,
+                  "clock": options.clock_tolerance}
     passed = (deviation <= options.end_state_tolerance and min_gap >= -options.gap_tolerance
-              and cone <= options.cone_tolerance * max(largest_normal, 1e-12) and monotone
-              and clock_error <= options.clock_tolerance)
+              and cone <= impulse_tolerance and dissipation <= impulse_tolerance
+              and monotone and clock_error <= options.clock_tolerance)
     return Verification(
         passed=bool(passed),
         method=method,
         end_state_deviation=deviation, min_gap=min_gap, friction_cone_violation=cone,
         clock_monotone=monotone, clock_end_error=clock_error, tolerances=tolerances,
-        notes=tuple(notes),
+        notes=tuple(notes), dissipation_violation=dissipation,
     )
 
 

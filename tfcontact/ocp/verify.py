@@ -29,6 +29,9 @@ class Verification:
         clock_end_error: |t(T_numerical) - T_physical| [s].
         tolerances: the tolerance of each check, by name.
         notes: what was not or could not be checked.
+        dissipation_violation: max over the elements where a contact slips of
+            ||Lambda_t + mu Lambda_n d|| (d the unit slip direction), Coulomb's maximal
+            dissipation (see `maximal_dissipation_violation`) [N s]; nan: not checked.
     """
 
     passed: bool
@@ -40,6 +43,7 @@ class Verification:
     clock_end_error: float
     tolerances: dict[str, float] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    dissipation_violation: float = float("nan")
 
     def to_dict(self) -> dict:
         out = asdict(self)
@@ -54,6 +58,7 @@ class Verification:
             f"{self.end_state_deviation:.2e} (tol {tol.get('end_state', float('nan')):.0e}), "
             f"min gap {self.min_gap:+.2e} m (tol -{tol.get('gap', float('nan')):.0e}), "
             f"friction-cone violation {self.friction_cone_violation:.2e} N s, "
+            f"maximal-dissipation violation {self.dissipation_violation:.2e} N s, "
             f"clock {'monotone' if self.clock_monotone else 'NOT monotone'}, "
             f"clock end error {self.clock_end_error:.2e} s"
         )
@@ -166,6 +171,68 @@ def friction_cone_violation(
                     float(np.max(-normal, initial=0.0)))
         col += 1 + d
     return worst
+
+
+SLIP_THRESHOLD = 1e-3
+"""Tangential contact speed [m/s] above which a contact counts as slipping: sticking in a
+plan leaves a residual slip of the order of its complementarity tolerance, far below
+1 mm/s, so a faster slip is real sliding whose friction must be on the cone's edge."""
+
+
+def maximal_dissipation_violation(
+    impulses: np.ndarray,
+    slip_velocities: np.ndarray,
+    mu: Sequence[float],
+    n_tangents: Sequence[int],
+    slip_threshold: float = SLIP_THRESHOLD,
+) -> tuple[float, int]:
+    """Coulomb's maximal dissipation on the elements where a contact slips.
+
+    Inside the cone is not enough: while a contact slips with v_t = B^T v != 0, its
+    friction dissipates as much as the cone allows, i.e. lies on the cone's edge against
+    the slip, Lambda_t = -mu Lambda_n v_t / ||v_t||. An element counts as slipping for a
+    contact if ||v_t|| > `slip_threshold` at every sample and the slip keeps its direction
+    (the unit directions' pairwise dot products stay positive; planar: the same sign);
+    its violation is ||Lambda_t + mu Lambda_n d||, d the normalised mean of the unit
+    directions (exact for a planar slip; a 3-D slip turning by an angle within the element
+    adds up to about that angle times mu Lambda_n). Elements that stick or reverse their
+    slip are not checked: there the friction may lie anywhere in the cone
+    (`friction_cone_violation`). An open contact must be given zero slip (it has no
+    friction to check).
+
+    Args:
+        impulses: (E, m), columns per contact (normal, tangent_1, ..., tangent_d) [N s].
+        slip_velocities: (E, P, sum of d) the tangential contact velocities B_i^T v at P
+            samples of each element (e.g. its start, stages and end), contacts' tangent
+            columns in the order of `impulses` [m/s].
+        mu, n_tangents: per contact.
+        slip_threshold: the slip speed below which a sample counts as sticking [m/s].
+
+    Returns:
+        (the largest violation over slipping elements and contacts [N s], 0.0 if none;
+        the number of slipping element-contacts checked).
+    """
+    worst, checked = 0.0, 0
+    col, slip_col = 0, 0
+    for mu_i, d in zip(mu, n_tangents, strict=True):
+        if d:
+            v_t = slip_velocities[:, :, slip_col : slip_col + d]
+            speed = np.linalg.norm(v_t, axis=2)
+            moving = np.all(speed > slip_threshold, axis=1)
+            unit = v_t / np.where(speed > 0.0, speed, 1.0)[:, :, None]
+            aligned = np.all(np.einsum("epk,eqk->epq", unit, unit) > 0.0, axis=(1, 2))
+            slipping = moving & aligned
+            if np.any(slipping):
+                direction = unit[slipping].mean(axis=1)
+                direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+                normal = impulses[slipping, col]
+                tangential = impulses[slipping, col + 1 : col + 1 + d]
+                residual = tangential + mu_i * normal[:, None] * direction
+                worst = max(worst, float(np.max(np.linalg.norm(residual, axis=1))))
+                checked += int(np.count_nonzero(slipping))
+        col += 1 + d
+        slip_col += d
+    return worst, checked
 
 
 def clock_checks(clock: np.ndarray, horizon: float, tolerance: float) -> tuple[bool, float]:
