@@ -15,6 +15,7 @@ from scipy.integrate import solve_ivp
 
 from tfcontact.errors import IncompatibleOptions, InvalidInput, SolveFailed
 from tfcontact.fesd.system import HeavisideSystem, StewartSystem
+from tfcontact.scenes.ball_in_box import WALLS, box_cls
 from tfcontact.scenes.particles import (
     G,
     bounce_times,
@@ -432,6 +433,47 @@ def test_reference_simulator_decides_the_mode_anew_at_control_breakpoints():
     assert [m for _, m in up.modes] == ["stick", "free"]
     np.testing.assert_allclose(up.final_state(), [0.0, 0.5 * G * (T - t_jump) ** 2, 0.0,
                                                   G * (T - t_jump)], atol=1e-9)
+
+
+
+def test_reference_simulator_ball_in_box_bounces_at_the_closed_form_times():
+    """Four frictionless elastic walls (box [-1.2, 1.1] x [-1.05, 1.15]), no force: the
+    ball at (0, 0) with v = (1, 0.5) hits the right wall at t = 1.1, the top at 2.3,
+    the left at 3.4 (e = 0.8 on every wall: each bounce scales one velocity component);
+    a ball aimed at the corner (1.1, 1.15) gets both impulses at once."""
+    e = 0.8
+    cls = box_cls(restitution=e)
+    sim = simulate_impacts(cls, [0, 0, 1.0, 0.5], lambda t: np.zeros(2), 4.0)
+    assert sim.status == "success"
+    assert [WALLS[imp.contact] for imp in sim.impacts] == ["right", "top", "left"]
+    t_right = 1.10
+    t_top = t_right + (1.15 - 0.5 * t_right) / 0.5
+    t_left = t_right + (1.10 + 1.20) / e
+    np.testing.assert_allclose(sim.impact_times, [t_right, t_top, t_left], rtol=1e-10)
+    for imp in sim.impacts:  # Newton: the wall's normal velocity reverses, scaled by e
+        axis = 0 if WALLS[imp.contact] in ("right", "left") else 1
+        assert imp.post[2 + axis] == pytest.approx(-e * imp.pre[2 + axis], rel=1e-12)
+        assert imp.post[3 - axis] == imp.pre[3 - axis]
+    corner = simulate_impacts(cls, [0, 0, 1.10, 1.15], lambda t: np.zeros(2), 1.5)
+    assert sorted(WALLS[imp.contact] for imp in corner.impacts) == ["right", "top"]
+    np.testing.assert_allclose(corner.final_state(),
+                               [1.10 - 0.5 * e * 1.10, 1.15 - 0.5 * e * 1.15,
+                                -e * 1.10, -e * 1.15], rtol=1e-9)
+
+
+def test_reference_simulator_several_contacts_need_them_frictionless_and_elastic():
+    x, y = ca.SX.sym("x"), ca.SX.sym("y")
+    q, v = ca.vertcat(x, y), ca.SX.sym("v", 2)
+    two_walls = [Contact(gap=y, tangents=ca.DM([[1], [0]]), mu=0.5, name="floor"),
+                 Contact(gap=1 - x, restitution=1.0, name="wall")]
+    cls = Cls(q=q, v=v, u=ca.SX(0, 1), mass_matrix=ca.SX.eye(2), forces=ca.SX(ca.DM([0, -G])),
+              contacts=two_walls)
+    with pytest.raises(IncompatibleOptions, match="frictionless and elastic.*'floor'"):
+        simulate_impacts(cls, [0, 1, 0, 0], None, 1.0)
+    # a ball that comes to rest on the floor of the box: persistent contact, not simulated
+    slow = box_cls(restitution=0.5, gravity=G)
+    with pytest.raises(IncompatibleOptions, match="persistent contact"):
+        simulate_impacts(slow, [0, -0.5, 0, 0], lambda t: np.zeros(2), 20.0)
 
 
 # ----------------------------------------------------------------------------- FESD simulations

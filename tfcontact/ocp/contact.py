@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from tfcontact.errors import IncompatibleOptions, InvalidInput, SolveFailed, TfcontactError
+from tfcontact.errors import InvalidInput, SolveFailed, TfcontactError
 from tfcontact.fesd import Fesd, RadauIIA, Scheme, simulate
 from tfcontact.mpcc import Homotopy, Ipopt, MpccStatus, Relaxation, Scholtes
 from tfcontact.ocp.problem import Constraint, OptimalControlProblem
@@ -185,7 +185,8 @@ class ContactSolverOptions:
         nlp: IPOPT settings.
         verify_method: how the plan's controls are re-simulated: "reference" (the
             event-detecting integration of the original system with impacts,
-            `simulate_impacts`: one contact), "fesd" (the FESD simulator on a finer grid)
+            `simulate_impacts`: one contact, or several frictionless elastic ones), "fesd"
+            (the FESD simulator on a finer grid)
             or "auto" (the reference where it applies, else FESD).
         verify_refinement: the FESD re-simulation uses this many steps per control interval.
         verify_scheme: the FESD re-simulation's IRK scheme.
@@ -396,7 +397,7 @@ def verify_plan(
     """The independent checks of a contact plan (see `Verification`).
 
     Re-simulates the plan's physical controls with the event-detecting reference of the
-    original system with impacts (one contact; `options.verify_method`), or else with the
+    original system with impacts (`simulate_impacts`, `options.verify_method`), or else with the
     FESD simulator on a grid `verify_refinement` times finer with a higher-order scheme,
     and compares the end states; checks the gaps on the plan, the friction cone of the
     contact impulses recovered from the momentum balance on the plan's collocation
@@ -408,17 +409,13 @@ def verify_plan(
     cls = system.cls
     notes: list[str] = []
     deviation, method = float("nan"), ""
-    if options.verify_method in ("auto", "reference") and cls.n_contacts == 1:
+    if options.verify_method in ("auto", "reference"):
         try:
             deviation, method = _reference_deviation(problem, system, ocp)
         except TfcontactError as error:
             if options.verify_method == "reference":
                 raise
             notes.append(f"event-detecting reference not applicable ({error}); FESD used")
-    elif options.verify_method == "reference":
-        raise IncompatibleOptions(
-            f"`verify_method`='reference' handles one contact, the system has "
-            f"{cls.n_contacts}; use 'fesd' or 'auto'")
     if not method:
         deviation, method = _fesd_deviation(problem, system, ocp, options, notes)
     # Gaps on the physical plan only: inside a frozen piece an elastic auxiliary spring

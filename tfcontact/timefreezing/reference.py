@@ -24,8 +24,15 @@ exactly, without any time-freezing:
   it had when the slip phase began (slip -> stick check), ||lambda_t|| = mu lambda_n
   (stick -> slip, slipping along -lambda_t).
 
+Several contacts (a ball in a box) are simulated when every contact is frictionless
+and elastic (e > 0): free flight with one touchdown event per gap, and a Newton impulse
+on each contact that closes and approaches; contacts that close together (a corner) must
+be kinetically orthogonal (n_i^T M^{-1} n_j = 0), where the sequential impulses are the
+simultaneous ones. Persistent contact is not simulated there (a bounce slower than
+`rest_velocity` stops with IncompatibleOptions).
+
 Limits (checked where possible, raised as IncompatibleOptions):
-* one contact only;
+* one contact, or several frictionless elastic ones (above);
 * at an elastic or 3-D frictional impact, B^T M^{-1} n = 0 and B^T M^{-1} B = w I
   (kinetic orthogonality and an isotropic tangent metric), true for particles, balls and
   blocks whose contact point is the centre of mass' projection;
@@ -58,7 +65,8 @@ class ReferenceImpact:
 
     Attributes:
         time: impact time [s]; pre, post: x = (q, v) before and after;
-        normal_impulse: Lambda_n [N s]; tangential_impulse: Lambda_t [N s], shape (n_t,).
+        normal_impulse: Lambda_n [N s]; tangential_impulse: Lambda_t [N s], shape (n_t,);
+        contact: the index of the contact in the CLS.
     """
 
     time: float
@@ -66,6 +74,7 @@ class ReferenceImpact:
     post: np.ndarray
     normal_impulse: float
     tangential_impulse: np.ndarray
+    contact: int = 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,7 +164,7 @@ def simulate_impacts(
     """Event-detecting simulation of the CLS with impacts (module docstring).
 
     Main arguments:
-        cls: a CLS with exactly one contact.
+        cls: a CLS with one contact, or with several frictionless elastic contacts.
         x0: initial state (q0, v0), shape (2 n_q,), with gap(q0) >= 0.
         u_of_t: control as a function of physical time, returning shape (n_u,); None when
             the system has no controls.
@@ -178,37 +187,26 @@ def simulate_impacts(
 
     Raises:
         InvalidInput: wrong shapes, T <= 0, or x0 inside the obstacle.
-        IncompatibleOptions: more than one contact or non-orthogonal contact directions.
+        IncompatibleOptions: several contacts of which one has friction or is inelastic,
+            non-orthogonal contact directions, or persistent contact with several contacts.
     """
     if not isinstance(cls, ComplementarityLagrangianSystem):
         raise InvalidInput(f"`cls` must be a ComplementarityLagrangianSystem, got {type(cls)}")
-    if cls.n_contacts != 1:
-        raise IncompatibleOptions(
-            f"`simulate_impacts` handles one contact, `cls` has {cls.n_contacts}"
-        )
     if not (math.isfinite(T) and T > 0):
         raise InvalidInput(f"`T` must be finite and > 0, got {T!r}")
     if max_rhs_evaluations < 1:
         raise InvalidInput(f"`max_rhs_evaluations` must be at least 1, got {max_rhs_evaluations}")
+    x0 = np.asarray(x0, dtype=float).ravel()
+    if x0.shape != (2 * cls.n_q,):
+        raise InvalidInput(f"`x0` must have shape ({2 * cls.n_q},), got {x0.shape}")
+    control = _checked_control(u_of_t, cls.n_u)
+    if cls.n_contacts > 1:
+        return _simulate_elastic_contacts(
+            cls, x0, control, T, rtol=rtol, atol=atol, max_events=max_events,
+            max_rhs_evaluations=max_rhs_evaluations, rest_velocity=rest_velocity,
+            max_step=max_step, breakpoints=breakpoints)
     model = _Model(cls)
     model.max_calls = max_rhs_evaluations
-    x0 = np.asarray(x0, dtype=float).ravel()
-    if x0.shape != (2 * model.n,):
-        raise InvalidInput(f"`x0` must have shape ({2 * model.n},), got {x0.shape}")
-    if u_of_t is None:
-        if model.n_u:
-            raise InvalidInput(f"`u_of_t` is None but the system has {model.n_u} controls")
-
-        def control(t: float) -> np.ndarray:
-            return np.zeros(0)
-    else:
-        def control(t: float) -> np.ndarray:
-            value = np.atleast_1d(np.asarray(u_of_t(t), dtype=float))
-            if value.shape != (model.n_u,):
-                raise InvalidInput(
-                    f"`u_of_t` must return shape ({model.n_u},), got {value.shape}"
-                )
-            return value
 
     gap0 = model.terms(x0, control(0.0))[4]
     if gap0 < -1e-12:
@@ -282,6 +280,163 @@ def simulate_impacts(
     return ReferenceSimulation(
         t=np.concatenate(ts), x=np.concatenate(xs), impacts=tuple(impacts),
         modes=tuple(modes), status=status, message=message, n_rhs=model.calls,
+    )
+
+
+def _checked_control(u_of_t: Callable[[float], np.ndarray] | None,
+                     n_u: int) -> Callable[[float], np.ndarray]:
+    if u_of_t is None:
+        if n_u:
+            raise InvalidInput(f"`u_of_t` is None but the system has {n_u} controls")
+
+        def control(t: float) -> np.ndarray:
+            return np.zeros(0)
+        return control
+
+    def checked(t: float) -> np.ndarray:
+        value = np.atleast_1d(np.asarray(u_of_t(t), dtype=float))
+        if value.shape != (n_u,):
+            raise InvalidInput(f"`u_of_t` must return shape ({n_u},), got {value.shape}")
+        return value
+    return checked
+
+
+def _simulate_elastic_contacts(
+    cls: ComplementarityLagrangianSystem,
+    x0: np.ndarray,
+    control: Callable[[float], np.ndarray],
+    T: float,
+    *,
+    rtol: float,
+    atol: float,
+    max_events: int,
+    max_rhs_evaluations: int,
+    rest_velocity: float,
+    max_step: float,
+    breakpoints: Sequence[float],
+) -> ReferenceSimulation:
+    """Several frictionless elastic contacts: free flight between Newton impacts."""
+    for contact in cls.contacts:
+        if contact.mu > 0 or contact.restitution == 0:
+            raise IncompatibleOptions(
+                f"`simulate_impacts` with several contacts needs them frictionless and "
+                f"elastic; contact {contact.name!r} has mu = {contact.mu}, "
+                f"e = {contact.restitution}")
+    n, n_c = cls.n_q, cls.n_contacts
+    q, v, u = cls.q, cls.v, cls.u
+    normals = ca.horzcat(*[c.normal for c in cls.contacts])
+    gaps = ca.vertcat(*[c.gap for c in cls.contacts])
+    terms = ca.Function("reference_terms", [q, v, u],
+                        [cls.acceleration, cls.solve_mass(normals), normals, gaps])
+    restitution = np.array([c.restitution for c in cls.contacts])
+    calls = 0
+
+    def evaluate(x: np.ndarray, u_now: np.ndarray):
+        nonlocal calls
+        calls += 1
+        if calls > max_rhs_evaluations:
+            raise _BudgetExceeded
+        return [np.asarray(r) for r in terms(x[:n], x[n:], u_now)]
+
+    gap0 = evaluate(x0, control(0.0))[3].ravel()
+    if np.any(gap0 < -1e-12):
+        raise InvalidInput(f"`x0` is inside an obstacle: gaps(q0) = {gap0.tolist()}")
+
+    def bounce(t: float, x: np.ndarray) -> tuple[np.ndarray, list[ReferenceImpact]]:
+        """Newton impulses on every closed, approaching contact (a corner: two)."""
+        done: list[ReferenceImpact] = []
+        for _ in range(2 * n_c):
+            _, minv_n, nrm, gap = evaluate(x, control(t))
+            vn = nrm.T @ x[n:]
+            closing = np.flatnonzero((gap.ravel() <= 1e-9) & (vn < 0.0))
+            if closing.size == 0:
+                return x, done
+            if closing.size > 1:
+                coupling = nrm[:, closing].T @ minv_n[:, closing]
+                off = coupling - np.diag(np.diag(coupling))
+                if np.abs(off).max() > 1e-9 * np.abs(coupling).max():
+                    raise IncompatibleOptions(
+                        "contacts closing together are not kinetically orthogonal "
+                        f"(n_i^T M^-1 n_j = {coupling.tolist()}): the impulse is not unique")
+            i = int(closing[np.argmin(vn[closing])])
+            if restitution[i] * -vn[i] < rest_velocity:
+                raise IncompatibleOptions(
+                    f"contact {cls.contacts[i].name!r} comes to rest at t = {t:.6g} s: "
+                    "persistent contact with several contacts is not simulated")
+            lam_n = -(1 + restitution[i]) * vn[i] / (nrm[:, i] @ minv_n[:, i])
+            post = x.copy()
+            post[n:] += minv_n[:, i] * lam_n
+            done.append(ReferenceImpact(t, x, post, float(lam_n), np.zeros(0), contact=i))
+            x = post
+        raise IncompatibleOptions(f"the impacts at t = {t:.6g} s do not end")
+
+    def touchdown(i: int, u_now: Callable[[float], np.ndarray]):
+        def event(t: float, x: np.ndarray) -> float:
+            return float(evaluate(x, u_now(t))[3].ravel()[i])
+        event.terminal, event.direction = True, -1
+        return event
+
+    def first_step(t: float, x: np.ndarray) -> float | None:
+        """A first step short enough that a contact leaving its wall has an open gap at
+        its end: else the touchdown event's root finder lands on the start itself."""
+        a_free, _, nrm, gap = evaluate(x, control(t))
+        vn, an = nrm.T @ x[n:], nrm.T @ a_free.ravel()
+        leaving = np.flatnonzero(gap.ravel() <= 1e-9)
+        if leaving.size == 0:
+            return None
+        flight = float(np.min(vn[leaving] / np.maximum(np.abs(an[leaving]), 1e-300)))
+        return 0.5 * flight if flight > 0 else None
+
+    ts, xs = [np.array([0.0])], [x0[None, :]]
+    impacts: list[ReferenceImpact] = []
+    t_cur, x_cur = 0.0, x0.copy()
+    status, message = "success", f"reached T = {T}"
+    stops = sorted({float(b) for b in breakpoints if 0.0 < b < T} | {float(T)})
+    try:
+        x_cur, first = bounce(t_cur, x_cur)
+        if first:
+            impacts += first
+            ts.append(np.array([t_cur]))
+            xs.append(x_cur[None, :])
+        while t_cur < T:
+            t_stop = next(b for b in stops if b > t_cur)
+            t_left = float(np.nextafter(t_stop, -np.inf))
+
+            def segment_control(t: float, t_left: float = t_left) -> np.ndarray:
+                return control(min(t, t_left))
+
+            def rhs(t: float, x: np.ndarray, u_now=segment_control) -> np.ndarray:
+                return np.concatenate([x[n:], evaluate(x, u_now(t))[0].ravel()])
+
+            step = first_step(t_cur, x_cur)
+            if step is not None:
+                step = min(step, t_stop - t_cur, max_step)
+            with np.errstate(under="ignore"):
+                sol = solve_ivp(rhs, (t_cur, t_stop), x_cur, method="DOP853", rtol=rtol,
+                                atol=atol, max_step=max_step, first_step=step,
+                                events=[touchdown(i, segment_control) for i in range(n_c)])
+            if sol.status == -1:
+                raise InvalidInput(f"reference integration failed: {sol.message}")
+            ts.append(sol.t[1:])
+            xs.append(sol.y.T[1:])
+            t_cur, x_cur = float(sol.t[-1]), sol.y[:, -1].copy()
+            if sol.status == 1:
+                x_cur, new = bounce(t_cur, x_cur)
+                if not new:  # a grazing touch: nothing to do
+                    continue
+                impacts += new
+                ts.append(np.array([t_cur]))
+                xs.append(x_cur[None, :])
+                if len(impacts) > max_events:
+                    status = "max_events"
+                    message = f"stopped after {max_events} events at t = {t_cur}"
+                    break
+    except _BudgetExceeded:
+        status = "max_rhs_evaluations"
+        message = f"stopped after {max_rhs_evaluations} model evaluations near t = {t_cur:.6g} s"
+    return ReferenceSimulation(
+        t=np.concatenate(ts), x=np.concatenate(xs), impacts=tuple(impacts),
+        modes=((0.0, FREE),), status=status, message=message, n_rhs=calls,
     )
 
 
