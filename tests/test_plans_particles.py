@@ -112,10 +112,10 @@ def test_contact_problem_guess_shape():
 
 
 def _box_options() -> ContactSolverOptions:
-    # started on the reference: a small sigma_0 keeps the relaxed NLP there
+    # scripts/plan_ball_in_box.py's settings: started on the reference, sigma_0 = 0.1
     return ContactSolverOptions(scheme=RadauIIA(2), n_finite_elements=3,
                                 relaxation=LinfPenalty(),
-                                homotopy=Homotopy(sigma_0=1e-3, tolerance=1e-7))
+                                homotopy=Homotopy(sigma_0=0.1, tolerance=1e-7))
 
 
 @pytest.mark.slow
@@ -130,7 +130,7 @@ def test_box_slow_circle_touches_no_wall(tmp_path):
     assert result.verification.method.startswith(
         "event-detecting reference (DOP853, exact impacts), 0 impacts")
     assert result.verification.end_state_deviation < 1e-6
-    assert result.ocp.n_nlps == 1
+    assert result.ocp.n_nlps <= 2  # measured 2 (27 IPOPT iterations)
     assert result.ocp.cost < 0.1
     # the plan's file: one robot contact (the ball) for four walls
     traj = trajectory_from_result(result, BALL_ROBOT, {"terrain": {"type": "none"}})
