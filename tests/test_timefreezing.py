@@ -461,6 +461,24 @@ def test_reference_simulator_ball_in_box_bounces_at_the_closed_form_times():
                                 -e * 1.10, -e * 1.15], rtol=1e-9)
 
 
+
+def test_reference_simulator_reports_the_impact_at_the_end():
+    """A contact that closes exactly at T: the state at T is ambiguous (before or after
+    the impact); the simulation ends before it and reports it in `end_impacts`."""
+    t_drop = drop_time(1.0)
+    sim = simulate_impacts(point_mass(1, restitution=0.9), [1.0, 0.0], None, t_drop)
+    assert sim.impacts == ()
+    (impact,) = sim.end_impacts
+    assert impact.time == t_drop
+    assert sim.final_state()[1] == pytest.approx(-G * t_drop, rel=1e-9)
+    assert impact.post[1] == pytest.approx(0.9 * G * t_drop, rel=1e-9)
+    early = simulate_impacts(point_mass(1, restitution=0.9), [1.0, 0.0], None, 0.9 * t_drop)
+    assert early.end_impacts == ()
+    box = simulate_impacts(box_cls(), [0, 0, 1.0, 0.5], lambda t: np.zeros(2), 1.10)
+    assert [WALLS[imp.contact] for imp in box.end_impacts] == ["right"]
+    np.testing.assert_allclose(box.end_impacts[0].post[2:], [-1.0, 0.5], rtol=1e-9)
+
+
 def test_reference_simulator_several_contacts_need_them_frictionless_and_elastic():
     x, y = ca.SX.sym("x"), ca.SX.sym("y")
     q, v = ca.vertcat(x, y), ca.SX.sym("v", 2)

@@ -90,6 +90,10 @@ class ReferenceSimulation:
             `message`).
         message: what happened.
         n_rhs: right-hand-side evaluations.
+        end_impacts: the impact(s) that a contact closing at T (gap within
+            `END_GAP_TOLERANCE`, approaching) takes at T, not applied to `x`: the state at T
+            is then ambiguous (before or after the impact), and a plan may end on either
+            side (FESD puts impacts on control-interval boundaries, and T is one).
     """
 
     t: np.ndarray
@@ -99,6 +103,7 @@ class ReferenceSimulation:
     status: str
     message: str
     n_rhs: int
+    end_impacts: tuple[ReferenceImpact, ...] = ()
 
     @property
     def impact_times(self) -> np.ndarray:
@@ -106,6 +111,14 @@ class ReferenceSimulation:
 
     def final_state(self) -> np.ndarray:
         return self.x[-1].copy()
+
+
+END_GAP_TOLERANCE = 1e-6
+"""A contact whose gap at T is below this [m] and closing takes its impact at T
+(`ReferenceSimulation.end_impacts`)."""
+
+
+_END_TIME_TOLERANCE = 1e-12  # relative: an event this close to T is an impact at T
 
 
 class _BudgetExceeded(Exception):
@@ -263,6 +276,8 @@ def simulate_impacts(
             break
         fired = [i for i, te in enumerate(sol.t_events) if te.size]
         u_now = control(t_cur)
+        if mode == FREE and t_cur >= T - _END_TIME_TOLERANCE * max(T, 1.0):
+            break  # an impact at T: reported in end_impacts, not applied (see there)
         if mode == FREE:
             pre = x_cur.copy()
             x_cur, lam_n, lam_t, rest = _impact(model, x_cur, u_now, rest_velocity)
@@ -277,9 +292,17 @@ def simulate_impacts(
             mode, direction = _contact_mode(model, x_cur, u_now, stick_first=True)
         else:  # stick -> slip (or lift-off, handled above)
             mode, direction = _contact_mode(model, x_cur, u_now, force_slip=True)
+    end_impacts: tuple[ReferenceImpact, ...] = ()
+    if status == "success" and mode == FREE:
+        u_end = control(T)
+        _, _, jac, _, gap = model.terms(x_cur, u_end)
+        if gap <= END_GAP_TOLERANCE and jac[:, 0] @ x_cur[n:] < 0.0:
+            post, lam_n, lam_t, _ = _impact(model, x_cur, u_end, rest_velocity)
+            end_impacts = (ReferenceImpact(T, x_cur.copy(), post, lam_n, lam_t),)
     return ReferenceSimulation(
         t=np.concatenate(ts), x=np.concatenate(xs), impacts=tuple(impacts),
         modes=tuple(modes), status=status, message=message, n_rhs=model.calls,
+        end_impacts=end_impacts,
     )
 
 
@@ -342,13 +365,14 @@ def _simulate_elastic_contacts(
     if np.any(gap0 < -1e-12):
         raise InvalidInput(f"`x0` is inside an obstacle: gaps(q0) = {gap0.tolist()}")
 
-    def bounce(t: float, x: np.ndarray) -> tuple[np.ndarray, list[ReferenceImpact]]:
+    def bounce(t: float, x: np.ndarray,
+               gap_tolerance: float = 1e-9) -> tuple[np.ndarray, list[ReferenceImpact]]:
         """Newton impulses on every closed, approaching contact (a corner: two)."""
         done: list[ReferenceImpact] = []
         for _ in range(2 * n_c):
             _, minv_n, nrm, gap = evaluate(x, control(t))
             vn = nrm.T @ x[n:]
-            closing = np.flatnonzero((gap.ravel() <= 1e-9) & (vn < 0.0))
+            closing = np.flatnonzero((gap.ravel() <= gap_tolerance) & (vn < 0.0))
             if closing.size == 0:
                 return x, done
             if closing.size > 1:
@@ -392,6 +416,7 @@ def _simulate_elastic_contacts(
     t_cur, x_cur = 0.0, x0.copy()
     status, message = "success", f"reached T = {T}"
     stops = sorted({float(b) for b in breakpoints if 0.0 < b < T} | {float(T)})
+    end_impacts: tuple[ReferenceImpact, ...] = ()
     try:
         x_cur, first = bounce(t_cur, x_cur)
         if first:
@@ -420,6 +445,8 @@ def _simulate_elastic_contacts(
             ts.append(sol.t[1:])
             xs.append(sol.y.T[1:])
             t_cur, x_cur = float(sol.t[-1]), sol.y[:, -1].copy()
+            if sol.status == 1 and t_cur >= T - _END_TIME_TOLERANCE * max(T, 1.0):
+                break  # an impact at T: reported in end_impacts, not applied
             if sol.status == 1:
                 x_cur, new = bounce(t_cur, x_cur)
                 if not new:  # a grazing touch: nothing to do
@@ -431,12 +458,18 @@ def _simulate_elastic_contacts(
                     status = "max_events"
                     message = f"stopped after {max_events} events at t = {t_cur}"
                     break
+        if status == "success":
+            try:
+                end_impacts = tuple(bounce(T, x_cur, END_GAP_TOLERANCE)[1])
+            except IncompatibleOptions:  # a contact coming to rest at T: no impact to add
+                pass
     except _BudgetExceeded:
         status = "max_rhs_evaluations"
         message = f"stopped after {max_rhs_evaluations} model evaluations near t = {t_cur:.6g} s"
     return ReferenceSimulation(
         t=np.concatenate(ts), x=np.concatenate(xs), impacts=tuple(impacts),
         modes=((0.0, FREE),), status=status, message=message, n_rhs=calls,
+        end_impacts=end_impacts,
     )
 
 
