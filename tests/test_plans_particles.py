@@ -7,6 +7,7 @@ verification (`ContactResult.success`) to pass.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import casadi as ca
@@ -221,3 +222,31 @@ def test_unreachable_target_fails_with_reason():
 
 def test_walls_constant():
     assert TF2_WALLS == (1.05, 1.10, 1.15, 1.20)
+
+
+@pytest.mark.slow
+def test_warm_start_from_a_previous_plan():
+    """TF-3 reduced: started from its own converged plan the solve takes a few iterations
+    and returns the same plan (measured: 30 against 594 iterations); started from it with
+    another scheme (3 stages) it converges to a verified plan nearby (measured: 81
+    iterations); a plan with another N is refused."""
+    problem = particle_friction_problem(n_intervals=6)
+    options = ContactSolverOptions(scheme=RadauIIA(2), n_finite_elements=3,
+                                   relaxation=LinfPenalty())
+    cold = solve_contact(problem, options, verbose=False)
+    assert cold.success, cold.message
+    low = Homotopy(sigma_0=1e-3)
+    again = solve_contact(problem, dataclasses.replace(options, homotopy=low),
+                          initial_guess=cold, verbose=False)
+    assert again.success, again.message
+    assert again.ocp.total_iterations < cold.ocp.total_iterations / 5
+    np.testing.assert_allclose(again.y, cold.y, atol=1e-6)
+    finer = solve_contact(problem, dataclasses.replace(options, scheme=RadauIIA(3), homotopy=low),
+                          initial_guess=cold, verbose=False)
+    assert finer.success, finer.message
+    assert finer.ocp.total_iterations < cold.ocp.total_iterations / 2
+    with pytest.raises(InvalidInput, match="same system with N = 4 control intervals"):
+        solve_contact(particle_friction_problem(n_intervals=4), options, initial_guess=cold,
+                      verbose=False)
+    with pytest.raises(InvalidInput, match="`initial_guess` must be a ContactResult"):
+        solve_contact(problem, options, initial_guess=cold.ocp, verbose=False)

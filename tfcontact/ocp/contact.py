@@ -20,6 +20,7 @@ clock. Only a plan that converged and passed these checks has status success.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -28,6 +29,7 @@ import numpy as np
 
 from tfcontact.errors import InvalidInput, SolveFailed, TfcontactError
 from tfcontact.fesd import Fesd, RadauIIA, Scheme, simulate
+from tfcontact.fesd.tableau import as_tableau
 from tfcontact.mpcc import Homotopy, Ipopt, MpccStatus, Relaxation, Scholtes
 from tfcontact.ocp.problem import Constraint, OptimalControlProblem
 from tfcontact.ocp.solve import OcpResult, Transcription, solve
@@ -334,6 +336,29 @@ def _transcribe(problem: ContactProblem) -> tuple[OptimalControlProblem, TimeFre
     return ocp, tf
 
 
+def _warm_start(ocp: OptimalControlProblem, previous: ContactResult,
+                transcription: Transcription) -> tuple[OptimalControlProblem, np.ndarray | None]:
+    """The OCP with `previous` as its initial guess, and the previous MPCC iterate when the
+    discretisation is the same (else None: the guess at the boundaries is interpolated)."""
+    if not isinstance(previous, ContactResult):
+        raise InvalidInput(f"`initial_guess` must be a ContactResult, got "
+                           f"{type(previous).__name__}")
+    prev = previous.ocp
+    n_int, n_x, n_u = ocp.n_intervals, ocp.x0.size, ocp.u_lower.size
+    if prev.x_intervals.shape != (n_int + 1, n_x) or prev.u.shape != (n_int, n_u):
+        raise InvalidInput(
+            f"`initial_guess` must be a plan of the same system with N = {n_int} control "
+            f"intervals: its boundary states have shape {prev.x_intervals.shape} (expected "
+            f"{(n_int + 1, n_x)}), its controls {prev.u.shape} (expected {(n_int, n_u)})")
+    guess = dataclasses.replace(ocp, x_guess=prev.x_intervals,
+                                u_guess=np.clip(prev.u, ocp.u_lower, ocp.u_upper))
+    disc = prev.build.discretization
+    same = (disc.tableau.name == as_tableau(transcription.scheme).name
+            and disc.grid.n_finite_elements == transcription.n_finite_elements
+            and disc.method == transcription.method)
+    return guess, (prev.mpcc_result.w.copy() if same else None)
+
+
 def _state_indices(system: TimeFreezingSystem) -> list[int]:
     return (list(range(system.q_index.start, system.q_index.stop))
             + list(range(system.v_index.start, system.v_index.stop)))
@@ -518,6 +543,7 @@ def solve_contact(
     problem: ContactProblem,
     options: ContactSolverOptions | None = None,
     *,
+    initial_guess: ContactResult | None = None,
     verbose: bool = True,
     throw: bool = False,
 ) -> ContactResult:
@@ -528,6 +554,11 @@ def solve_contact(
         options: discretisation, homotopy and verification settings.
 
     Other args:
+        initial_guess: a previous plan of the same system with the same number of control
+            intervals (another scheme, N_FE, cost or constraint is fine): its whole
+            iterate is the start when the discretisation is the same, else its states
+            and controls at the interval boundaries. Start the homotopy lower
+            (`Homotopy(sigma_0=...)`) to stay near it.
         verbose: one line per homotopy step and the summary.
         throw: raise `SolveFailed` (with the result) unless the plan succeeded.
 
@@ -541,8 +572,12 @@ def solve_contact(
     transcription = Transcription(scheme=options.scheme,
                                   n_finite_elements=options.n_finite_elements,
                                   method=options.method)
+    w0 = None
+    if initial_guess is not None:
+        ocp_problem, w0 = _warm_start(ocp_problem, initial_guess, transcription)
     result = solve(ocp_problem, discretization=transcription, relaxation=options.relaxation,
-                   homotopy=options.homotopy, nlp=options.nlp, verbose=verbose, throw=False)
+                   homotopy=options.homotopy, nlp=options.nlp, w0=w0, verbose=verbose,
+                   throw=False)
     solved = time.perf_counter()
     physical = to_physical_time(system, result.t, result.x)
     verification = verify_plan(problem, system, result, physical, options)
