@@ -479,6 +479,20 @@ def test_reference_simulator_reports_the_impact_at_the_end():
     np.testing.assert_allclose(box.end_impacts[0].post[2:], [-1.0, 0.5], rtol=1e-9)
 
 
+
+def test_reference_simulator_starts_inside_an_impact():
+    """A plan's state in the middle of an impact: slightly inside the obstacle and still
+    closing. Within `start_gap_tolerance` the impact comes first, at t = 0."""
+    x0 = [-1e-5, -2.0]
+    with pytest.raises(InvalidInput, match="inside the obstacle"):
+        simulate_impacts(point_mass(1, restitution=0.5), x0, None, 0.1)
+    sim = simulate_impacts(point_mass(1, restitution=0.5), x0, None, 0.1,
+                           start_gap_tolerance=1e-4)
+    assert sim.impact_times == pytest.approx([0.0])
+    assert sim.impacts[0].post[1] == pytest.approx(1.0)
+    assert sim.final_state()[0] == pytest.approx(-1e-5 + 0.1 - 0.5 * G * 0.01, rel=1e-9)
+
+
 def test_reference_simulator_several_contacts_need_them_frictionless_and_elastic():
     x, y = ca.SX.sym("x"), ca.SX.sym("y")
     q, v = ca.vertcat(x, y), ca.SX.sym("v", 2)

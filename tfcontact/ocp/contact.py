@@ -44,6 +44,7 @@ from tfcontact.ocp.verify import (
 from tfcontact.timefreezing import (
     FROZEN_RATE_TOL,
     PhysicalTrajectory,
+    ReferenceSimulation,
     TimeFreezingSystem,
     simulate_impacts,
     to_physical_time,
@@ -384,19 +385,74 @@ def _reference_deviation(problem: ContactProblem, system: TimeFreezingSystem,
                                  breakpoints=clocks[1:-1], rtol=1e-10, atol=1e-11)
     if reference.status != "success":
         raise SolveFailed(f"reference simulation stopped: {reference.message}", reference)
-    plan_end = ocp.x[-1, _state_indices(system)]
-    deviation = float(np.max(np.abs(reference.final_state() - plan_end)))
+    deviation, side = _end_deviation(reference, ocp.x[-1, _state_indices(system)])
     times = np.round(reference.impact_times, 4).tolist()
     method = (f"event-detecting reference (DOP853, exact impacts), {len(times)} impacts at "
               f"t = {times} s")
-    if reference.end_impacts:
-        # A contact closes at T: the plan may end before or after that impact (its frozen
-        # piece done at T); either side of the jump is the state at T.
-        after = float(np.max(np.abs(reference.end_impacts[-1].post - plan_end)))
-        side = "after" if after < deviation else "before"
-        deviation = min(deviation, after)
+    if side:
         method += f", and one at T (the plan ends {side} it)"
     return deviation, method
+
+
+def _end_deviation(reference: ReferenceSimulation, plan_end: np.ndarray) -> tuple[float, str]:
+    """(max |x_ref(T) - x_plan(T)|, "" or the side of an impact at T the plan ends on).
+
+    A contact that closes at T makes the state at T ambiguous: the plan may end before or
+    after that impact (its frozen piece done at T); either side of the jump is accepted.
+    """
+    deviation = float(np.max(np.abs(reference.final_state() - plan_end)))
+    if not reference.end_impacts:
+        return deviation, ""
+    after = float(np.max(np.abs(reference.end_impacts[-1].post - plan_end)))
+    return min(deviation, after), ("after" if after < deviation else "before")
+
+
+LOCAL_DEFECT_IMPACT_WINDOW = 0.01
+"""An impact within this fraction of a control interval of the interval's end counts on
+either side of it in the local defects (`Verification.local_defects`)."""
+
+
+def _local_defects(system: TimeFreezingSystem, ocp: OcpResult,
+                   options: ContactSolverOptions) -> tuple[float, ...]:
+    """The reference restarted at each control interval's start from the plan's state,
+    run for the interval with its control: the deviation at the interval's end."""
+    clocks = ocp.x_intervals[:, system.clock_index]
+    states = ocp.x_intervals[:, _state_indices(system)]
+    n_u = system.cls.n_u
+    # A boundary inside a frozen piece (frozen elements on both sides) holds a state in the
+    # middle of an impact, which no physical state equals: no defect there.
+    element_clock = ocp.x[:, system.clock_index]
+    frozen = np.diff(element_clock) <= FROZEN_RATE_TOL * ocp.h
+    n_fe = options.n_finite_elements
+    mid_impact = np.zeros(len(clocks), dtype=bool)
+    mid_impact[1:-1] = frozen[n_fe - 1 : -1 : n_fe][: len(clocks) - 2] & frozen[n_fe::n_fe]
+    defects = []
+    for k in range(len(clocks) - 1):
+        duration = clocks[k + 1] - clocks[k]
+        u_k = ocp.u[k, :n_u]
+        try:
+            if duration <= 1e-12 or mid_impact[k] or mid_impact[k + 1]:
+                raise InvalidInput("no physical state to compare")
+            # Run 1 % past the interval's end: an impact that the plan puts on the boundary
+            # and the reference a little after it (or before) is compared on both sides,
+            # else the velocity jump would count as the plan's error.
+            window = LOCAL_DEFECT_IMPACT_WINDOW * duration
+            local = simulate_impacts(system.cls, states[k], (lambda t, u_k=u_k: u_k) if n_u
+                                     else None, float(duration + window), rtol=1e-10,
+                                     atol=1e-11, breakpoints=[float(duration)],
+                                     start_gap_tolerance=options.gap_tolerance,
+                                     max_rhs_evaluations=200_000)
+            if local.status != "success":
+                raise SolveFailed(local.message, local)
+            at_end = np.flatnonzero(local.t <= duration)[-1]
+            candidates = [local.x[at_end]]
+            candidates += [imp.pre if imp.time <= duration else imp.post
+                           for imp in (*local.impacts, *local.end_impacts)
+                           if abs(imp.time - duration) <= window]
+            defects.append(min(float(np.max(np.abs(c - states[k + 1]))) for c in candidates))
+        except TfcontactError:
+            defects.append(float("nan"))
+    return tuple(defects)
 
 
 def _fesd_deviation(problem: ContactProblem, system: TimeFreezingSystem, ocp: OcpResult,
@@ -443,6 +499,7 @@ def verify_plan(
     cls = system.cls
     notes: list[str] = []
     deviation, method = float("nan"), ""
+    local_defects: tuple[float, ...] = ()
     if options.verify_method in ("auto", "reference"):
         try:
             deviation, method = _reference_deviation(problem, system, ocp)
@@ -450,6 +507,10 @@ def verify_plan(
             if options.verify_method == "reference":
                 raise
             notes.append(f"event-detecting reference not applicable ({error}); FESD used")
+        try:  # also where the full replay stopped (a jam): intervals before it still tell
+            local_defects = _local_defects(system, ocp, options)
+        except TfcontactError as error:
+            notes.append(f"local defects not computed ({error})")
     if not method:
         deviation, method = _fesd_deviation(problem, system, ocp, options, notes)
     # Gaps on the physical plan only: inside a frozen piece an elastic auxiliary spring
@@ -535,7 +596,7 @@ def verify_plan(
         method=method,
         end_state_deviation=deviation, min_gap=min_gap, friction_cone_violation=cone,
         clock_monotone=monotone, clock_end_error=clock_error, tolerances=tolerances,
-        notes=tuple(notes), dissipation_violation=dissipation,
+        notes=tuple(notes), dissipation_violation=dissipation, local_defects=local_defects,
     )
 
 

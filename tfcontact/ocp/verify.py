@@ -32,6 +32,11 @@ class Verification:
         dissipation_violation: max over the elements where a contact slips of
             ||Lambda_t + mu Lambda_n d|| (d the unit slip direction), Coulomb's maximal
             dissipation (see `maximal_dissipation_violation`) [N s]; nan: not checked.
+        local_defects: per control interval k, the deviation at its end of the exact
+            reference restarted at its start from the plan's own state (inf norm) [state
+            units]: where the plan itself is wrong, free of the open-loop growth of errors
+            that the end-state deviation also measures. A diagnostic, not a pass
+            criterion; nan where the reference could not start; empty: not computed.
     """
 
     passed: bool
@@ -44,10 +49,12 @@ class Verification:
     tolerances: dict[str, float] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
     dissipation_violation: float = float("nan")
+    local_defects: tuple[float, ...] = ()
 
     def to_dict(self) -> dict:
         out = asdict(self)
         out["notes"] = list(self.notes)
+        out["local_defects"] = list(self.local_defects)
         return out
 
     def summary(self) -> str:
@@ -60,8 +67,15 @@ class Verification:
             f"friction-cone violation {self.friction_cone_violation:.2e} N s, "
             f"maximal-dissipation violation {self.dissipation_violation:.2e} N s, "
             f"clock {'monotone' if self.clock_monotone else 'NOT monotone'}, "
-            f"clock end error {self.clock_end_error:.2e} s"
+            f"clock end error {self.clock_end_error:.2e} s{self._defect_text()}"
         )
+
+    def _defect_text(self) -> str:
+        defects = np.asarray(self.local_defects, dtype=float)
+        if not np.any(np.isfinite(defects)):
+            return ""
+        k = int(np.nanargmax(defects))
+        return f"; largest local defect {defects[k]:.2e} (interval {k + 1} of {defects.size})"
 
 
 def contact_impulses(

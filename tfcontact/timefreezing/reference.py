@@ -173,6 +173,7 @@ def simulate_impacts(
     rest_velocity: float = 1e-7,
     max_step: float = np.inf,
     breakpoints: Sequence[float] = (),
+    start_gap_tolerance: float = 1e-12,
 ) -> ReferenceSimulation:
     """Event-detecting simulation of the CLS with impacts (module docstring).
 
@@ -194,6 +195,10 @@ def simulate_impacts(
         breakpoints: times [s] where u_of_t jumps (a piecewise constant control): each
             integration stops there and the contact mode is decided anew with the new
             control (a push can lift the foot off or break sticking).
+        start_gap_tolerance: x0 may lie this far inside the obstacle [m] (a plan's state
+            in the middle of an impact, or on the surface up to the plan's accuracy); a
+            contact at x0 that closes faster than `rest_velocity` takes its impact at t = 0
+            (one contact: the impact is recorded; several: `end_impacts` rules apply).
 
     Returns:
         A `ReferenceSimulation`.
@@ -217,12 +222,13 @@ def simulate_impacts(
         return _simulate_elastic_contacts(
             cls, x0, control, T, rtol=rtol, atol=atol, max_events=max_events,
             max_rhs_evaluations=max_rhs_evaluations, rest_velocity=rest_velocity,
-            max_step=max_step, breakpoints=breakpoints)
+            max_step=max_step, breakpoints=breakpoints,
+            start_gap_tolerance=max(start_gap_tolerance, 1e-12))
     model = _Model(cls)
     model.max_calls = max_rhs_evaluations
 
     gap0 = model.terms(x0, control(0.0))[4]
-    if gap0 < -1e-12:
+    if gap0 < -max(start_gap_tolerance, 1e-12):
         raise InvalidInput(f"`x0` is inside the obstacle: gap(q0) = {gap0:.3e} < 0")
 
     ts, xs = [np.array([0.0])], [x0[None, :]]
@@ -231,7 +237,14 @@ def simulate_impacts(
     t_cur, x_cur = 0.0, x0.copy()
     n = model.n
     _, _, jac0, _, _ = model.terms(x_cur, control(0.0))
-    contact_now = gap0 <= 1e-12 and jac0[:, 0] @ x_cur[n:] <= rest_velocity
+    on_surface = gap0 <= max(start_gap_tolerance, 1e-12)
+    if on_surface and jac0[:, 0] @ x_cur[n:] < -rest_velocity:  # closing: the impact first
+        pre = x_cur.copy()
+        x_cur, lam_n, lam_t, _ = _impact(model, x_cur, control(0.0), rest_velocity)
+        impacts.append(ReferenceImpact(0.0, pre, x_cur.copy(), lam_n, lam_t))
+        ts.append(np.array([0.0]))
+        xs.append(x_cur[None, :])
+    contact_now = on_surface and jac0[:, 0] @ x_cur[n:] <= rest_velocity
     mode, direction = (_contact_mode(model, x_cur, control(0.0)) if contact_now
                        else (FREE, None))
     status, message = "success", f"reached T = {T}"
@@ -337,6 +350,7 @@ def _simulate_elastic_contacts(
     rest_velocity: float,
     max_step: float,
     breakpoints: Sequence[float],
+    start_gap_tolerance: float,
 ) -> ReferenceSimulation:
     """Several frictionless elastic contacts: free flight between Newton impacts."""
     for contact in cls.contacts:
@@ -362,7 +376,7 @@ def _simulate_elastic_contacts(
         return [np.asarray(r) for r in terms(x[:n], x[n:], u_now)]
 
     gap0 = evaluate(x0, control(0.0))[3].ravel()
-    if np.any(gap0 < -1e-12):
+    if np.any(gap0 < -start_gap_tolerance):
         raise InvalidInput(f"`x0` is inside an obstacle: gaps(q0) = {gap0.tolist()}")
 
     def bounce(t: float, x: np.ndarray,
@@ -418,7 +432,7 @@ def _simulate_elastic_contacts(
     stops = sorted({float(b) for b in breakpoints if 0.0 < b < T} | {float(T)})
     end_impacts: tuple[ReferenceImpact, ...] = ()
     try:
-        x_cur, first = bounce(t_cur, x_cur)
+        x_cur, first = bounce(t_cur, x_cur, start_gap_tolerance)
         if first:
             impacts += first
             ts.append(np.array([t_cur]))
