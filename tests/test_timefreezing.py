@@ -491,6 +491,12 @@ def test_reference_simulator_starts_inside_an_impact():
     assert sim.impact_times == pytest.approx([0.0])
     assert sim.impacts[0].post[1] == pytest.approx(1.0)
     assert sim.final_state()[0] == pytest.approx(-1e-5 + 0.1 - 0.5 * G * 0.01, rel=1e-9)
+    # a block 10 um above the ground, sliding: free flight first, then the impact (the
+    # tolerance does not put it in contact, where it would slip with friction at once)
+    above = simulate_impacts(point_mass(2, mu=0.5, controlled=True), [0, 1e-5, 1.0, 0],
+                             lambda t: np.zeros(2), 0.1, start_gap_tolerance=1e-3)
+    assert [m for _, m in above.modes][:2] == ["free", "slip"]
+    assert above.impact_times == pytest.approx([math.sqrt(2e-5 / G)], rel=1e-9)
 
 
 def test_reference_simulator_several_contacts_need_them_frictionless_and_elastic():

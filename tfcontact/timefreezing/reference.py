@@ -196,9 +196,9 @@ def simulate_impacts(
             integration stops there and the contact mode is decided anew with the new
             control (a push can lift the foot off or break sticking).
         start_gap_tolerance: x0 may lie this far inside the obstacle [m] (a plan's state
-            in the middle of an impact, or on the surface up to the plan's accuracy); a
-            contact at x0 that closes faster than `rest_velocity` takes its impact at t = 0
-            (one contact: the impact is recorded; several: `end_impacts` rules apply).
+            in the middle of an impact); a contact at or inside the surface at x0 that
+            closes faster than `rest_velocity` takes its impact at t = 0. A positive gap,
+            however small, starts in free flight.
 
     Returns:
         A `ReferenceSimulation`.
@@ -237,7 +237,7 @@ def simulate_impacts(
     t_cur, x_cur = 0.0, x0.copy()
     n = model.n
     _, _, jac0, _, _ = model.terms(x_cur, control(0.0))
-    on_surface = gap0 <= max(start_gap_tolerance, 1e-12)
+    on_surface = gap0 <= 1e-12  # on it or (within the tolerance) inside it
     if on_surface and jac0[:, 0] @ x_cur[n:] < -rest_velocity:  # closing: the impact first
         pre = x_cur.copy()
         x_cur, lam_n, lam_t, _ = _impact(model, x_cur, control(0.0), rest_velocity)
@@ -432,7 +432,7 @@ def _simulate_elastic_contacts(
     stops = sorted({float(b) for b in breakpoints if 0.0 < b < T} | {float(T)})
     end_impacts: tuple[ReferenceImpact, ...] = ()
     try:
-        x_cur, first = bounce(t_cur, x_cur, start_gap_tolerance)
+        x_cur, first = bounce(t_cur, x_cur)
         if first:
             impacts += first
             ts.append(np.array([t_cur]))
