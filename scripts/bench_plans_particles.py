@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -43,7 +44,7 @@ def table() -> str:
         v = s["verification"]
         dev = v["end_state_deviation"]
         dissipation = v.get("dissipation_violation")  # absent from older summaries
-        defects = [d for d in v.get("local_defects", []) if d is not None and d == d]
+        defects = [d for d in v.get("local_defects", []) if d is not None and math.isfinite(d)]
         defect = f"{max(defects):.1e}" if defects else "not computed"
         rows.append(
             f"| {label} | {s['status']} | {s['objective']:.4g} | {s['nlp_count']} | "

@@ -486,6 +486,8 @@ def test_reference_simulator_starts_inside_an_impact():
     x0 = [-1e-5, -2.0]
     with pytest.raises(InvalidInput, match="inside the obstacle"):
         simulate_impacts(point_mass(1, restitution=0.5), x0, None, 0.1)
+    with pytest.raises(InvalidInput, match="`start_gap_tolerance` must be >= 0"):
+        simulate_impacts(point_mass(1), [1.0, 0.0], None, 0.1, start_gap_tolerance=-1e-3)
     sim = simulate_impacts(point_mass(1, restitution=0.5), x0, None, 0.1,
                            start_gap_tolerance=1e-4)
     assert sim.impact_times == pytest.approx([0.0])

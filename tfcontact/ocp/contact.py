@@ -196,8 +196,9 @@ class ContactSolverOptions:
         verify_relaxation: the FESD re-simulation's relaxation (`L1Penalty()` needs one or
             two NLPs per step where Scholtes needs one per decade of sigma).
         end_state_tolerance, gap_tolerance, cone_tolerance, clock_tolerance: the checks'
-            tolerances (see `Verification`); `cone_tolerance` is relative to the largest
-            normal impulse of the plan, because the impulses recovered from the plan's
+            tolerances (see `Verification`); `cone_tolerance` (which also bounds the
+            maximal-dissipation violation) is relative to the largest normal impulse of
+            the plan, because the impulses recovered from the plan's
             collocation polynomials carry its relaxed complementarity and quadrature
             errors, proportional to them.
     """
@@ -385,26 +386,33 @@ def _reference_deviation(problem: ContactProblem, system: TimeFreezingSystem,
                                  breakpoints=clocks[1:-1], rtol=1e-10, atol=1e-11)
     if reference.status != "success":
         raise SolveFailed(f"reference simulation stopped: {reference.message}", reference)
-    deviation, side = _end_deviation(reference, ocp.x[-1, _state_indices(system)])
+    deviation, side = _deviation_at(reference, problem.horizon,
+                                    ocp.x[-1, _state_indices(system)])
     times = np.round(reference.impact_times, 4).tolist()
     method = (f"event-detecting reference (DOP853, exact impacts), {len(times)} impacts at "
               f"t = {times} s")
-    if side:
-        method += f", and one at T (the plan ends {side} it)"
+    if reference.end_impacts:
+        method += f", and one at T (the plan ends {side or 'before'} it)"
     return deviation, method
 
 
-def _end_deviation(reference: ReferenceSimulation, plan_end: np.ndarray) -> tuple[float, str]:
-    """(max |x_ref(T) - x_plan(T)|, "" or the side of an impact at T the plan ends on).
+def _deviation_at(reference: ReferenceSimulation, t_end: float, plan_state: np.ndarray,
+                  window: float = 0.0) -> tuple[float, str]:
+    """(max |x_ref(t_end) - x_plan|, "" or "before"/"after": the plan's side of an impact).
 
-    A contact that closes at T makes the state at T ambiguous: the plan may end before or
-    after that impact (its frozen piece done at T); either side of the jump is accepted.
+    An impact of the reference within `window` of t_end (or at T, `end_impacts`) makes the
+    comparison ambiguous: the plan may put it on the other side of t_end (FESD puts impacts
+    on control-interval boundaries), so the reference's state on either side counts.
     """
-    deviation = float(np.max(np.abs(reference.final_state() - plan_end)))
-    if not reference.end_impacts:
-        return deviation, ""
-    after = float(np.max(np.abs(reference.end_impacts[-1].post - plan_end)))
-    return min(deviation, after), ("after" if after < deviation else "before")
+    at_end = np.flatnonzero(reference.t <= t_end)[-1]
+    candidates = [(reference.x[at_end], "")]
+    candidates += [(imp.pre, "before") if imp.time <= t_end else (imp.post, "after")
+                   for imp in reference.impacts if abs(imp.time - t_end) <= window]
+    candidates += [(imp.post, "after") for imp in reference.end_impacts
+                   if abs(imp.time - t_end) <= window]
+    deviation, side = min((float(np.max(np.abs(x - plan_state))), side)
+                          for x, side in candidates)
+    return deviation, side
 
 
 LOCAL_DEFECT_IMPACT_WINDOW = 0.01
@@ -412,20 +420,21 @@ LOCAL_DEFECT_IMPACT_WINDOW = 0.01
 either side of it in the local defects (`Verification.local_defects`)."""
 
 
-def _local_defects(system: TimeFreezingSystem, ocp: OcpResult,
-                   options: ContactSolverOptions) -> tuple[float, ...]:
+def _local_defects(system: TimeFreezingSystem, ocp: OcpResult, frozen: np.ndarray,
+                   gap_tolerance: float) -> tuple[float, ...]:
     """The reference restarted at each control interval's start from the plan's state,
-    run for the interval with its control: the deviation at the interval's end."""
+    run for the interval with its control: the deviation at the interval's end.
+
+    `frozen` marks the plan's frozen finite elements: a boundary with frozen elements on
+    both sides holds a state in the middle of an impact, which no physical state equals,
+    so its intervals get nan (as do intervals the reference cannot simulate).
+    """
     clocks = ocp.x_intervals[:, system.clock_index]
     states = ocp.x_intervals[:, _state_indices(system)]
     n_u = system.cls.n_u
-    # A boundary inside a frozen piece (frozen elements on both sides) holds a state in the
-    # middle of an impact, which no physical state equals: no defect there.
-    element_clock = ocp.x[:, system.clock_index]
-    frozen = np.diff(element_clock) <= FROZEN_RATE_TOL * ocp.h
-    n_fe = options.n_finite_elements
+    by_interval = frozen.reshape(len(clocks) - 1, -1)
     mid_impact = np.zeros(len(clocks), dtype=bool)
-    mid_impact[1:-1] = frozen[n_fe - 1 : -1 : n_fe][: len(clocks) - 2] & frozen[n_fe::n_fe]
+    mid_impact[1:-1] = by_interval[:-1, -1] & by_interval[1:, 0]
     defects = []
     for k in range(len(clocks) - 1):
         duration = clocks[k + 1] - clocks[k]
@@ -433,26 +442,21 @@ def _local_defects(system: TimeFreezingSystem, ocp: OcpResult,
         if duration <= 1e-12 or mid_impact[k] or mid_impact[k + 1]:
             defects.append(float("nan"))  # no physical state to compare with
             continue
+        # Run a little past the interval's end, so that an impact the plan puts on the
+        # boundary and the reference just after it is compared on both sides.
+        window = LOCAL_DEFECT_IMPACT_WINDOW * duration
         try:
-            # Run 1 % past the interval's end: an impact that the plan puts on the boundary
-            # and the reference a little after it (or before) is compared on both sides,
-            # else the velocity jump would count as the plan's error.
-            window = LOCAL_DEFECT_IMPACT_WINDOW * duration
             local = simulate_impacts(system.cls, states[k], (lambda t, u_k=u_k: u_k) if n_u
                                      else None, float(duration + window), rtol=1e-10,
                                      atol=1e-11, breakpoints=[float(duration)],
-                                     start_gap_tolerance=options.gap_tolerance,
+                                     start_gap_tolerance=gap_tolerance,
                                      max_rhs_evaluations=200_000)
-            if local.status != "success":
-                raise SolveFailed(local.message, local)
-            at_end = np.flatnonzero(local.t <= duration)[-1]
-            candidates = [local.x[at_end]]
-            candidates += [imp.pre if imp.time <= duration else imp.post
-                           for imp in (*local.impacts, *local.end_impacts)
-                           if abs(imp.time - duration) <= window]
-            defects.append(min(float(np.max(np.abs(c - states[k + 1]))) for c in candidates))
         except TfcontactError:
+            local = None
+        if local is None or local.status != "success":
             defects.append(float("nan"))
+            continue
+        defects.append(_deviation_at(local, duration, states[k + 1], window)[0])
     return tuple(defects)
 
 
@@ -501,6 +505,8 @@ def verify_plan(
     notes: list[str] = []
     deviation, method = float("nan"), ""
     local_defects: tuple[float, ...] = ()
+    # The finite elements where the clock runs (the others are frozen pieces).
+    running = np.diff(ocp.x[:, system.clock_index]) > FROZEN_RATE_TOL * np.diff(ocp.t)
     if options.verify_method in ("auto", "reference"):
         try:
             deviation, method = _reference_deviation(problem, system, ocp)
@@ -508,17 +514,13 @@ def verify_plan(
             if options.verify_method == "reference":
                 raise
             notes.append(f"event-detecting reference not applicable ({error}); FESD used")
-        try:  # also where the full replay stopped (a jam): intervals before it still tell
-            local_defects = _local_defects(system, ocp, options)
-        except TfcontactError as error:
-            notes.append(f"local defects not computed ({error})")
+        # also where the full replay stopped (a jam): the intervals before it still tell
+        local_defects = _local_defects(system, ocp, ~running, options.gap_tolerance)
     if not method:
         deviation, method = _fesd_deviation(problem, system, ocp, options, notes)
     # Gaps on the physical plan only: inside a frozen piece an elastic auxiliary spring
     # runs *inside* the obstacle by construction (the clock stands still there).
     gap_fn = cls.function("gaps")
-    clock = ocp.x[:, system.clock_index]
-    running = np.diff(clock) > FROZEN_RATE_TOL * np.diff(ocp.t)
     gaps = np.asarray(gap_fn(physical.q.T)).T
     stage_q = ocp.x_stages[running][:, :, system.q_index].reshape(-1, system.q_index.stop
                                                                    - system.q_index.start)

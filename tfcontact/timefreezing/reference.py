@@ -214,6 +214,9 @@ def simulate_impacts(
         raise InvalidInput(f"`T` must be finite and > 0, got {T!r}")
     if max_rhs_evaluations < 1:
         raise InvalidInput(f"`max_rhs_evaluations` must be at least 1, got {max_rhs_evaluations}")
+    if not start_gap_tolerance >= 0:
+        raise InvalidInput(f"`start_gap_tolerance` must be >= 0 [m], got {start_gap_tolerance!r}")
+    inside = max(start_gap_tolerance, 1e-12)  # how far x0 may start inside an obstacle
     x0 = np.asarray(x0, dtype=float).ravel()
     if x0.shape != (2 * cls.n_q,):
         raise InvalidInput(f"`x0` must have shape ({2 * cls.n_q},), got {x0.shape}")
@@ -222,13 +225,12 @@ def simulate_impacts(
         return _simulate_elastic_contacts(
             cls, x0, control, T, rtol=rtol, atol=atol, max_events=max_events,
             max_rhs_evaluations=max_rhs_evaluations, rest_velocity=rest_velocity,
-            max_step=max_step, breakpoints=breakpoints,
-            start_gap_tolerance=max(start_gap_tolerance, 1e-12))
+            max_step=max_step, breakpoints=breakpoints, start_gap_tolerance=inside)
     model = _Model(cls)
     model.max_calls = max_rhs_evaluations
 
     gap0 = model.terms(x0, control(0.0))[4]
-    if gap0 < -max(start_gap_tolerance, 1e-12):
+    if gap0 < -inside:
         raise InvalidInput(f"`x0` is inside the obstacle: gap(q0) = {gap0:.3e} < 0")
 
     ts, xs = [np.array([0.0])], [x0[None, :]]
