@@ -7,7 +7,7 @@ in physical time with exact impacts (no time-freezing). One run per variant, in 
 process, one after the other. Writes benchmarks/hopper_settings.md and
 benchmarks/hopper_settings.png.
 
-    python scripts/bench_hopper_settings.py          # about 10 minutes on a quiet machine
+    python scripts/bench_hopper_settings.py          # about 8 minutes on a quiet machine
 """
 
 from __future__ import annotations
