@@ -134,8 +134,9 @@ def run_nosnoc() -> dict:
     }
 
 
-def _replay_deviation(cls, x0: np.ndarray, clocks: np.ndarray, controls: np.ndarray,
-                      horizon: float, plan_end: np.ndarray) -> float:
+def _replay_deviation(cls: ComplementarityLagrangianSystem, x0: np.ndarray,
+                      clocks: np.ndarray, controls: np.ndarray, horizon: float,
+                      plan_end: np.ndarray) -> float:
     """max |x_replay(T) - x_plan(T)|, or nan if the replay stops (message printed).
 
     An impact of the replay at exactly T counts on either side, as in tfcontact's check.
