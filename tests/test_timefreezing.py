@@ -32,6 +32,7 @@ from tfcontact.timefreezing import (
     elastic_damping,
     frozen_duration,
     hysteresis_system,
+    replay_controls,
     simulate_impacts,
     time_freeze,
     to_physical_time,
@@ -478,6 +479,39 @@ def test_reference_simulator_reports_the_impact_at_the_end():
     assert [WALLS[imp.contact] for imp in box.end_impacts] == ["right"]
     np.testing.assert_allclose(box.end_impacts[0].post[2:], [-1.0, 0.5], rtol=1e-9)
 
+
+
+def test_replay_of_piecewise_constant_controls():
+    """A block thrown sideways at 2 m/s from 1 m lands at t_c = sqrt(2 / g) with mu = 0.5:
+    the impact stops its slip (mu |v_n-| = 2.2 > 2 m/s). The second control (from the
+    clock 0.5 s on) pushes with 10 N > mu m g: it slides with (10 - mu m g) / m."""
+    cls = point_mass(2, mu=0.5, controlled=True)
+    x_land = 2.0 * math.sqrt(2.0 / G)
+    accel = 10.0 - 0.5 * G
+    sim = replay_controls(cls, [0.0, 1.0, 2.0, 0.0], [0.0, 0.5, 1.0],
+                          [[0.0, 0.0], [10.0, 0.0]], 1.0)
+    assert 0.5 in sim.t  # each clock value is a breakpoint
+    np.testing.assert_allclose(sim.final_state(),
+                               [x_land + 0.5 * accel * 0.25, 0.0, 0.5 * accel, 0.0],
+                               atol=1e-8)
+    with pytest.raises(InvalidInput, match="`controls` has 1 rows for 3 clock values"):
+        replay_controls(cls, [0.0, 1.0, 2.0, 0.0], [0.0, 0.5, 1.0], [[0.0, 0.0]], 1.0)
+    # no controls: a ball dropped from 1 m, replayed over one interval
+    ball = replay_controls(point_mass(1, restitution=0.5), [1.0, 0.0], [0.0, 1.0],
+                           np.zeros((1, 0)), 1.0)
+    assert ball.impact_times == pytest.approx(bounce_times(1.0, 0.5, 2), rel=1e-9)
+
+
+def test_deviation_at_an_impact_counts_either_side_within_the_window():
+    """A ball dropped from 1 m hits the ground at t_d: compared at t_d + 1e-3 a state just
+    before the impact matches only if the window admits the impact."""
+    t_drop = drop_time(1.0)
+    sim = simulate_impacts(point_mass(1, restitution=0.5), [1.0, 0.0], None, t_drop + 1e-3)
+    (impact,) = sim.impacts
+    deviation, side = sim.deviation_at(sim.t[-1], impact.pre)
+    assert side == "" and deviation > 1.0  # the velocity has turned
+    deviation, side = sim.deviation_at(sim.t[-1], impact.pre, window=2e-3)
+    assert side == "before" and deviation == 0.0
 
 
 def test_reference_simulator_starts_inside_an_impact():

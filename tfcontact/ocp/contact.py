@@ -44,9 +44,8 @@ from tfcontact.ocp.verify import (
 from tfcontact.timefreezing import (
     FROZEN_RATE_TOL,
     PhysicalTrajectory,
-    ReferenceSimulation,
     TimeFreezingSystem,
-    simulate_impacts,
+    replay_controls,
     to_physical_time,
     with_lagrange_cost,
     with_speed_of_time,
@@ -373,46 +372,20 @@ def _reference_deviation(problem: ContactProblem, system: TimeFreezingSystem,
     The physical controls are piecewise constant between the clock values at the
     control-interval boundaries (k T / N with the stagewise clock constraint).
     """
-    clocks = ocp.x_intervals[:, system.clock_index]
-    n_u = system.cls.n_u
-    controls = ocp.u[:, :n_u]
-
-    def u_of_t(t: float) -> np.ndarray:
-        k = int(np.clip(np.searchsorted(clocks, t, side="right") - 1, 0, len(controls) - 1))
-        return controls[k]
-
     x0 = np.concatenate([problem.q0, problem.v0])
-    reference = simulate_impacts(system.cls, x0, u_of_t if n_u else None, problem.horizon,
-                                 breakpoints=clocks[1:-1], rtol=1e-10, atol=1e-11)
+    reference = replay_controls(system.cls, x0, ocp.x_intervals[:, system.clock_index],
+                                ocp.u[:, :system.cls.n_u], problem.horizon, rtol=1e-10,
+                                atol=1e-11)
     if reference.status != "success":
         raise SolveFailed(f"reference simulation stopped: {reference.message}", reference)
-    deviation, side = _deviation_at(reference, problem.horizon,
-                                    ocp.x[-1, _state_indices(system)])
+    deviation, side = reference.deviation_at(problem.horizon,
+                                             ocp.x[-1, _state_indices(system)])
     times = np.round(reference.impact_times, 4).tolist()
     method = (f"event-detecting reference (DOP853, exact impacts), {len(times)} impacts at "
               f"t = {times} s")
     if reference.end_impacts:
         method += f", and one at T (the plan ends {side or 'before'} it)"
     return deviation, method
-
-
-def _deviation_at(reference: ReferenceSimulation, t_end: float, plan_state: np.ndarray,
-                  window: float = 0.0) -> tuple[float, str]:
-    """(max |x_ref(t_end) - x_plan|, "" or "before"/"after": the plan's side of an impact).
-
-    An impact of the reference within `window` of t_end (or at T, `end_impacts`) makes the
-    comparison ambiguous: the plan may put it on the other side of t_end (FESD puts impacts
-    on control-interval boundaries), so the reference's state on either side counts.
-    """
-    at_end = np.flatnonzero(reference.t <= t_end)[-1]
-    candidates = [(reference.x[at_end], "")]
-    candidates += [(imp.pre, "before") if imp.time <= t_end else (imp.post, "after")
-                   for imp in reference.impacts if abs(imp.time - t_end) <= window]
-    candidates += [(imp.post, "after") for imp in reference.end_impacts
-                   if abs(imp.time - t_end) <= window]
-    deviation, side = min((float(np.max(np.abs(x - plan_state))), side)
-                          for x, side in candidates)
-    return deviation, side
 
 
 LOCAL_DEFECT_IMPACT_WINDOW = 0.01
@@ -438,7 +411,6 @@ def _local_defects(system: TimeFreezingSystem, ocp: OcpResult, frozen: np.ndarra
     defects = []
     for k in range(len(clocks) - 1):
         duration = clocks[k + 1] - clocks[k]
-        u_k = ocp.u[k, :n_u]
         if duration <= 1e-12 or mid_impact[k] or mid_impact[k + 1]:
             defects.append(float("nan"))  # no physical state to compare with
             continue
@@ -446,17 +418,16 @@ def _local_defects(system: TimeFreezingSystem, ocp: OcpResult, frozen: np.ndarra
         # boundary and the reference just after it is compared on both sides.
         window = LOCAL_DEFECT_IMPACT_WINDOW * duration
         try:
-            local = simulate_impacts(system.cls, states[k], (lambda t, u_k=u_k: u_k) if n_u
-                                     else None, float(duration + window), rtol=1e-10,
-                                     atol=1e-11, breakpoints=[float(duration)],
-                                     start_gap_tolerance=gap_tolerance,
-                                     max_rhs_evaluations=200_000)
+            local = replay_controls(system.cls, states[k], [0.0, duration], ocp.u[k, :n_u],
+                                    float(duration + window), rtol=1e-10, atol=1e-11,
+                                    start_gap_tolerance=gap_tolerance,
+                                    max_rhs_evaluations=200_000)
         except TfcontactError:
             local = None
         if local is None or local.status != "success":
             defects.append(float("nan"))
             continue
-        defects.append(_deviation_at(local, duration, states[k + 1], window)[0])
+        defects.append(local.deviation_at(duration, states[k + 1], window)[0])
     return tuple(defects)
 
 

@@ -11,6 +11,7 @@ stops while they act. Entry points:
 * `with_speed_of_time`, `with_lagrange_cost`: the OCP layer's transformations.
 * `to_physical_time`: numerical-time solutions -> physical time with impacts as jumps.
 * `simulate_impacts`: an event-detecting reference simulation of the original system.
+* `replay_controls`: the same with a plan's piecewise constant controls.
 """
 
 from tfcontact.timefreezing.builder import time_freeze
@@ -33,6 +34,7 @@ from tfcontact.timefreezing.physical import (
 from tfcontact.timefreezing.reference import (
     ReferenceImpact,
     ReferenceSimulation,
+    replay_controls,
     simulate_impacts,
 )
 from tfcontact.timefreezing.system import (
@@ -58,6 +60,7 @@ __all__ = [
     "from_robot",
     "frozen_duration",
     "hysteresis_system",
+    "replay_controls",
     "normal_spring",
     "push_speed",
     "simulate_impacts",

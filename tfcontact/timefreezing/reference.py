@@ -48,6 +48,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -111,6 +112,25 @@ class ReferenceSimulation:
 
     def final_state(self) -> np.ndarray:
         return self.x[-1].copy()
+
+    def deviation_at(self, t_end: float, state: np.ndarray,
+                     window: float = 0.0) -> tuple[float, str]:
+        """(max |x(t_end) - state|, "" or "before"/"after": the side of an impact `state`
+        matches best).
+
+        An impact within `window` of t_end (or at T, `end_impacts`) makes the comparison
+        ambiguous: a plan may put it on the other side of t_end (FESD puts impacts on
+        control-interval boundaries), so the state on either side of it counts.
+        """
+        at_end = np.flatnonzero(self.t <= t_end)[-1]
+        candidates = [(self.x[at_end], "")]
+        candidates += [(imp.pre, "before") if imp.time <= t_end else (imp.post, "after")
+                       for imp in self.impacts if abs(imp.time - t_end) <= window]
+        candidates += [(imp.post, "after") for imp in self.end_impacts
+                       if abs(imp.time - t_end) <= window]
+        deviation, side = min((float(np.max(np.abs(x - state))), side)
+                              for x, side in candidates)
+        return deviation, side
 
 
 END_GAP_TOLERANCE = 1e-6
@@ -319,6 +339,39 @@ def simulate_impacts(
         modes=tuple(modes), status=status, message=message, n_rhs=model.calls,
         end_impacts=end_impacts,
     )
+
+
+def replay_controls(
+    cls: ComplementarityLagrangianSystem,
+    x0: np.ndarray,
+    clocks: np.ndarray,
+    controls: np.ndarray,
+    T: float,
+    **options: Any,
+) -> ReferenceSimulation:
+    """`simulate_impacts` with a plan's piecewise constant controls.
+
+    Args:
+        cls, x0, T: as for `simulate_impacts`.
+        clocks: physical times of the control-interval boundaries, shape (N + 1,)
+            (a time-freezing plan's clock there); each one is a breakpoint, so the
+            simulation has a sample at each.
+        controls: shape (N, n_u); controls[k] acts from clocks[k] on (the last one also
+            after clocks[N]).
+        options: further keyword arguments of `simulate_impacts`.
+    """
+    clocks = np.asarray(clocks, dtype=float).ravel()
+    controls = np.atleast_2d(np.asarray(controls, dtype=float))
+    if controls.shape[0] != len(clocks) - 1:
+        raise InvalidInput(f"`controls` has {controls.shape[0]} rows for {len(clocks)} "
+                           "clock values: expected one control per interval")
+
+    def u_of_t(t: float) -> np.ndarray:
+        k = int(np.clip(np.searchsorted(clocks, t, side="right") - 1, 0, len(controls) - 1))
+        return controls[k]
+
+    return simulate_impacts(cls, x0, u_of_t if controls.shape[1] else None, T,
+                            breakpoints=clocks[1:], **options)
 
 
 def _checked_control(u_of_t: Callable[[float], np.ndarray] | None,
