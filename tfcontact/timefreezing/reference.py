@@ -271,18 +271,11 @@ def simulate_impacts(
                        else (FREE, None))
     status, message = "success", f"reached T = {T}"
     events_used = 0
-    stops = sorted({float(b) for b in breakpoints if 0.0 < b < T} | {float(T)})
+    stops = _stops(breakpoints, T)
     while t_cur < T:
         if not modes or modes[-1][1] != mode:
             modes.append((t_cur, mode))
-        t_stop = next(b for b in stops if b > t_cur)
-        # Within a segment the control is its left limit at the segment's end, so that a
-        # jump at t_stop is not seen (as an event) before the breakpoint.
-        t_left = float(np.nextafter(t_stop, -np.inf))
-
-        def segment_control(t: float, t_left: float = t_left) -> np.ndarray:
-            return control(min(t, t_left))
-
+        t_stop, segment_control = _segment(control, stops, t_cur)
         rhs, events = _phase(model, mode, direction, segment_control)
         try:
             with np.errstate(under="ignore"):  # scipy's step-size floor at t = 0 underflows
@@ -372,6 +365,24 @@ def replay_controls(
 
     return simulate_impacts(cls, x0, u_of_t if controls.shape[1] else None, T,
                             breakpoints=clocks[1:], **options)
+
+
+def _stops(breakpoints: Sequence[float], T: float) -> list[float]:
+    """The ends of the integration segments: the breakpoints inside (0, T), and T."""
+    return sorted({float(b) for b in breakpoints if 0.0 < b < T} | {float(T)})
+
+
+def _segment(control: Callable[[float], np.ndarray], stops: list[float],
+             t_cur: float) -> tuple[float, Callable[[float], np.ndarray]]:
+    """(end of the segment from t_cur, its control). Within a segment the control is its
+    left limit at the segment's end, so that a jump at the breakpoint is not seen (as an
+    event) before it."""
+    t_stop = next(b for b in stops if b > t_cur)
+    t_left = float(np.nextafter(t_stop, -np.inf))
+
+    def segment_control(t: float) -> np.ndarray:
+        return control(min(t, t_left))
+    return t_stop, segment_control
 
 
 def _checked_control(u_of_t: Callable[[float], np.ndarray] | None,
@@ -484,7 +495,7 @@ def _simulate_elastic_contacts(
     impacts: list[ReferenceImpact] = []
     t_cur, x_cur = 0.0, x0.copy()
     status, message = "success", f"reached T = {T}"
-    stops = sorted({float(b) for b in breakpoints if 0.0 < b < T} | {float(T)})
+    stops = _stops(breakpoints, T)
     end_impacts: tuple[ReferenceImpact, ...] = ()
     try:
         x_cur, first = bounce(t_cur, x_cur)
@@ -493,11 +504,7 @@ def _simulate_elastic_contacts(
             ts.append(np.array([t_cur]))
             xs.append(x_cur[None, :])
         while t_cur < T:
-            t_stop = next(b for b in stops if b > t_cur)
-            t_left = float(np.nextafter(t_stop, -np.inf))
-
-            def segment_control(t: float, t_left: float = t_left) -> np.ndarray:
-                return control(min(t, t_left))
+            t_stop, segment_control = _segment(control, stops, t_cur)
 
             def rhs(t: float, x: np.ndarray, u_now=segment_control) -> np.ndarray:
                 return np.concatenate([x[n:], evaluate(x, u_now(t))[0].ravel()])
