@@ -123,6 +123,9 @@ def test_incompatible_methods_are_rejected():
         Elastic(stiffness=-1.0)
     with pytest.raises(InvalidInput, match=r"`normal_switching` must be 'separate' or 'max'"):
         Inelastic(normal_switching="min")
+    for bad in (0.0, -30.0, float("nan"), float("inf")):
+        with pytest.raises(InvalidInput, match=r"`gap_scale` must be a finite number > 0"):
+            Inelastic(gap_scale=bad)
     with pytest.raises(InvalidInput, match="`cls` must be a ComplementarityLagrangianSystem"):
         time_freeze("ball")
 
@@ -587,6 +590,29 @@ def test_ball_drop_impact_time_rest_and_clock_rate():
     np.testing.assert_allclose(result.x[after, 1], 0.0, atol=1e-8)
     rate = np.diff(result.x[after, 2]) / np.diff(result.t[after])
     np.testing.assert_allclose(rate, G / (G - (-G)), rtol=1e-6)  # [AUTO23] eq. (17)
+
+
+@pytest.mark.parametrize("normal_switching", ["separate", "max"])
+def test_scaled_gap_switching_function_has_the_same_regions_and_impact(normal_switching):
+    """c_q = K f_c: the switching function scales, the dynamics and the drop do not."""
+    scale = 20.0
+    tf = time_freeze(point_mass(2, mu=0.3, a_n=G),
+                     method=Inelastic(normal_switching=normal_switching, gap_scale=scale))
+    plain = time_freeze(point_mass(2, mu=0.3, a_n=G),
+                        method=Inelastic(normal_switching=normal_switching))
+    assert dict(tf.info)["gap_scale"] == scale
+    c = ca.Function("c", [tf.y], [tf.pss.switching])
+    c_plain = ca.Function("c", [plain.y], [plain.pss.switching])
+    y = np.array([0.0, 0.2, 0.5, -0.3, 0.0])  # above the ground, falling, slipping
+    np.testing.assert_allclose(c(y).full().ravel()[0], scale * c_plain(y).full().ravel()[0])
+    np.testing.assert_allclose(c(y).full().ravel()[1:], c_plain(y).full().ravel()[1:])
+    result, phys = sim(tf, tf.initial_state([0.0, 1.0], [0.0, 0.0]), horizon=1.5,
+                       n_steps=15, n_finite_elements=3)
+    assert len(phys.impacts) == 1
+    assert phys.impacts[0].time == pytest.approx(drop_time(1.0), abs=1e-8)
+    assert phys.impacts[0].pre[3] == pytest.approx(-G * drop_time(1.0), rel=1e-8)
+    assert abs(phys.impacts[0].post[3]) < 1e-8  # v_z: inelastic
+    assert result.x[:, 1].min() > -PENETRATION_TOL
 
 
 @pytest.mark.slow

@@ -3,7 +3,7 @@
 DESIGN.md 4.3-4.4, PROBLEMS.md 0.3, [AUTO23] sections 3-4. State y = (q, v, t).
 Per contact i the switching functions are
 
-    c_q,i  = f_c,i(q)                       (gap)
+    c_q,i  = K f_c,i(q)                     (gap; K = `gap_scale`, default 1)
     c_vn,i = n_i(q)^T v                     (normal velocity)
     c_vt,i = b_i(q)^T v                     (planar friction, n_t = 1)
     c_vt,i = ||B_i(q)^T v||_eps - eps_t     (3-D friction, n_t = 2, see below)
@@ -68,15 +68,26 @@ class Inelastic:
             R_1 = {c_qv > 0} and Q = {c_qv < 0} are the same regions, but on the contact
             surface the step variable is unique (the separate pair is only determined
             through its product), which the NLPs may prefer.
+        gap_scale: K > 0 [1/s] in the gap's switching function, c_q = K f_c (and
+            max(K f_c, n^T v)). The regions, hence the exact solutions, do not depend on
+            K, but the relaxed MPCC does: the relaxation bounds the product of each step
+            variable with a multiplier in the switching function's units. With K = 1 a gap
+            of 1e-4 m is as "closed" as a normal velocity of 1e-4 m/s, and relaxed plans let
+            the auxiliary dynamics act while the foot is still above the ground; K of the
+            order of 1/h (h a finite element's duration) measures the gap by the velocity
+            that closes it within one element (benchmarks/hopper_bench.md).
     """
 
     normal_switching: str = "separate"
+    gap_scale: float = 1.0
 
     def __post_init__(self) -> None:
         if self.normal_switching not in ("separate", "max"):
             raise InvalidInput(
                 f"`normal_switching` must be 'separate' or 'max', got {self.normal_switching!r}"
             )
+        if not (math.isfinite(self.gap_scale) and self.gap_scale > 0):
+            raise InvalidInput(f"`gap_scale` must be a finite number > 0, got {self.gap_scale!r}")
 
     def build(self, cls: ComplementarityLagrangianSystem) -> TimeFreezingSystem:
         """The time-freezing PSS of `cls` (module docstring)."""
@@ -98,9 +109,10 @@ class Inelastic:
         for i, contact in enumerate(cls.contacts):
             name = contact.name
             normal = contact.normal
+            gap = self.gap_scale * contact.gap
             if self.normal_switching == "max":
                 a_qv = ca.SX.sym(f"alpha_qv_{name}")
-                switching.append(ca.fmax(contact.gap, cls.normal_velocity(i)))
+                switching.append(ca.fmax(gap, cls.normal_velocity(i)))
                 alphas.append(a_qv)
                 alpha_names.append(f"gap_vn_{name}")
                 theta_ode = theta_ode * a_qv
@@ -108,7 +120,7 @@ class Inelastic:
             else:
                 a_q = ca.SX.sym(f"alpha_q_{name}")
                 a_n = ca.SX.sym(f"alpha_vn_{name}")
-                switching += [contact.gap, cls.normal_velocity(i)]
+                switching += [gap, cls.normal_velocity(i)]
                 alphas += [a_q, a_n]
                 alpha_names += [f"gap_{name}", f"vn_{name}"]
                 theta_ode = theta_ode * (a_q + a_n - a_q * a_n)
@@ -154,6 +166,7 @@ class Inelastic:
             region_names=tuple(region_names), cls=cls,
             info=(("alpha_names", tuple(alpha_names)),
                   ("normal_switching", self.normal_switching),
+                  ("gap_scale", self.gap_scale),
                   ("a_n", tuple(c.a_n for c in cls.contacts)),
                   ("eps_t", tuple(c.eps_t for c in cls.contacts))),
         )
