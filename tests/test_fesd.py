@@ -196,6 +196,17 @@ def test_a_failed_step_is_reported_or_raised():
     assert result.t.size == 1 and result.n_steps == 1
 
 
+def test_a_failed_step_is_retried_with_a_gentler_schedule():
+    # The same failing schedule; the retry (kappa -> sqrt(kappa), NLPs until the
+    # tolerance) finishes each step, and the switch is still found.
+    result = simulate(sign_system(), [-1.0], horizon=1.0, n_steps=2,
+                      homotopy=Homotopy(max_nlps=1))
+    assert result.success
+    assert result.n_retries == 2
+    assert result.residual <= 1e-9
+    assert abs(result.switch_times[0] - 1 / 3) <= 1e-9
+
+
 # ---------------------------------------------------------------- convergence order
 
 

@@ -12,8 +12,9 @@ so the simulator reports them exactly (Nurkanovic et al., Numer. Math. 2024, sec
 from __future__ import annotations
 
 import enum
+import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -147,7 +148,9 @@ def simulate(
         relaxation: `Scholtes()` (default), `L1Penalty()` or `LinfPenalty()`.
         nlp: IPOPT settings.
         retry: retry a failed step once from the consistent guess at x_k with the
-            Scholtes relaxation (counted in `n_retries`, its NLPs in `n_nlps`).
+            Scholtes relaxation and a gentler schedule (kappa -> sqrt(kappa), as many
+            NLPs as it needs to reach the tolerance), counted in `n_retries`, its NLPs
+            in `n_nlps`.
         verbose: print one line per NLP (from the MPCC layer) and one per step.
         throw: raise `SolveFailed` (result attached, up to the failed step) if a step fails.
 
@@ -170,6 +173,9 @@ def simulate(
         raise InvalidInput(f"`x0` must be finite, got {x0}")
     controls = _controls(u, n_steps, system.n_u)
     homotopy = homotopy if homotopy is not None else Homotopy()
+    # An isolated IPOPT failure at one sigma (e.g. Infeasible_Problem_Detected where a
+    # slip stops inside the step) is usually passed by smaller decrements of sigma.
+    gentler = replace(homotopy, kappa=math.sqrt(homotopy.kappa), max_nlps=None)
     start = time.perf_counter()
     grid = FesdGrid(1, n_fe, float(horizon) / n_steps)
     disc = discretize(system, grid=grid, scheme=scheme, method=method, controls="parameters")
@@ -205,7 +211,7 @@ def simulate(
             if fallback is None:
                 fallback = (solver if isinstance(solver.relaxation, Scholtes)
                             else MpccSolver(disc.mpcc, relaxation=Scholtes(), nlp=nlp))
-            result = fallback.solve(p, disc.initial_guess(x), homotopy=homotopy,
+            result = fallback.solve(p, disc.initial_guess(x), homotopy=gentler,
                                     verbose=verbose)
             retries.append((k, first))
         results.append(result)
