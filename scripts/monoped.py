@@ -213,8 +213,9 @@ def bench_markdown(mp: MonopedProblem, result: ContactResult, checks: dict, args
 
 
 def options_text(args: argparse.Namespace) -> str:
-    return (f"holes as {args.hole_form}, speed of time in [1, {args.s_max}], clock "
-            f"constraint {args.clock}, verification refinement {args.verify_refinement}; "
+    return (f"holes as {args.hole_form}, gap scale {args.gap_scale:g}/s, speed of time in "
+            f"[1, {args.s_max}], clock constraint {args.clock}, verification refinement "
+            f"{args.verify_refinement}; "
             f"FESD Radau IIA {args.stages} stages, N_FE = {args.n_fe}, {args.relaxation}, "
             f"sigma_0 = {args.sigma0}, kappa = {args.kappa}, comp. tol {args.comp_tol:g}, "
             f"IPOPT (MUMPS) tol 1e-8, mu_strategy {args.mu_strategy}")
@@ -241,6 +242,8 @@ def main(argv: list[str] | None = None) -> int:
                              "(authors' robot_ocp.m: only at T)")
     parser.add_argument("--hole-half-width", type=float, default=None)
     parser.add_argument("--verify-refinement", type=int, default=2)
+    parser.add_argument("--gap-scale", type=float, default=1.0,
+                        help="K [1/s] of the gap's switching function K f_c")
     parser.add_argument("--out", type=Path, default=ROOT / "out" / "monoped")
     parser.add_argument("--bench", action="store_true",
                         help="also write benchmarks/monoped.md and benchmarks/monoped.png")
@@ -253,7 +256,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.n_intervals is not None:
         task = dataclasses.replace(task, n_intervals=args.n_intervals)
     task = dataclasses.replace(task, hole_form=args.hole_form, speed_of_time=(1.0, args.s_max),
-                               stagewise_clock=args.clock == "stagewise")
+                               stagewise_clock=args.clock == "stagewise",
+                               gap_scale=args.gap_scale)
     if args.hole_half_width is not None:
         task = dataclasses.replace(task, hole_half_width=args.hole_half_width)
     if args.stages is None:

@@ -84,3 +84,18 @@ def test_reduced_monoped_plan_hops_over_the_hole():
     # Avoids the hole at every element boundary and stage point, ellipse form (TF-9).
     holes = mp.hole_values(q_all)
     assert holes.min() >= -1e-6
+
+
+def test_gap_scale_reaches_the_time_freezing_system():
+    """`MonopedTask.gap_scale` is the switching function's K f_c (same regions)."""
+    import casadi as ca
+
+    plain = monoped_problem(MonopedTask()).system
+    scaled = monoped_problem(MonopedTask(gap_scale=30.0)).system
+    assert dict(scaled.info)["gap_scale"] == 30.0
+    c_plain = ca.Function("c", [plain.y], [plain.pss.switching])
+    c_scaled = ca.Function("c", [scaled.y], [scaled.pss.switching])
+    y = np.zeros(plain.y.numel())
+    y[:4] = (0.0, 0.45, 0.3, -0.4)
+    np.testing.assert_allclose(c_scaled(y).full()[0], 30.0 * c_plain(y).full()[0], rtol=1e-12)
+    np.testing.assert_allclose(c_scaled(y).full()[1:], c_plain(y).full()[1:], atol=1e-15)

@@ -29,7 +29,7 @@ from tfcontact.errors import InvalidInput
 from tfcontact.ocp.contact import ContactProblem
 from tfcontact.ocp.problem import Constraint
 from tfcontact.robot import ContactSpec, Ground, Robot, load_robot
-from tfcontact.timefreezing import TimeFreezingSystem, from_robot, time_freeze
+from tfcontact.timefreezing import Inelastic, TimeFreezingSystem, from_robot, time_freeze
 
 FOOT_RADIUS = 0.028
 """Radius of the URDF's foot sphere [m]; the ground is lowered by it (point-foot gap)."""
@@ -48,6 +48,7 @@ class MonopedTask:
         hole_half_width, hole_depth: the ellipse semi-axes a, b [m].
         control_bound: |u_i| <= control_bound [N m].
         mu: Coulomb friction coefficient; a_n: time-freezing auxiliary gain [1/s^2].
+        gap_scale: K [1/s] of the gap's switching function K f_c (`Inelastic.gap_scale`).
         speed_of_time: (s_min, s_max).
         stagewise_clock: t = k T / N at every control-interval boundary (else only at T).
         hole_form: "ellipse": ((p_x - x_c)/a)^2 + (p_z/b)^2 >= 1 (TF-9); "bump":
@@ -69,6 +70,7 @@ class MonopedTask:
     speed_of_time: tuple[float, float] = (1.0, 25.0)
     stagewise_clock: bool = True
     hole_form: str = "ellipse"
+    gap_scale: float = 1.0
 
     def __post_init__(self) -> None:
         if self.hole_form not in ("ellipse", "bump"):
@@ -131,7 +133,7 @@ def monoped_problem(task: MonopedTask | None = None) -> MonopedProblem:
                        contacts=(ContactSpec("foot", FOOT_RADIUS),))
     ground = Ground(height=-FOOT_RADIUS)
     cls = from_robot(robot, ground, mu=task.mu, a_n=task.a_n)
-    system = time_freeze(cls)
+    system = time_freeze(cls, method=Inelastic(gap_scale=task.gap_scale))
     q_sym = robot.twin.q
     knee = ca.Function("knee", [q_sym], [robot.twin.frame_position("shank")[[0, 2]]])
     foot = ca.Function("foot", [q_sym], [robot.twin.frame_position("foot")[[0, 2]]])
