@@ -1,11 +1,11 @@
 """The hopper's solver settings side by side: solve time against the plan's accuracy.
 
 Each variant changes one setting of `hopper_options()` (the settings of the README's
-main job, `tfcontact plan hopper`) and plans the short task from the start-everywhere
-guess. Accuracy is the verification's end-state deviation: the plan's controls replayed
-in physical time with exact impacts (no time-freezing). One run per variant, in one
-process, one after the other. Writes benchmarks/hopper_settings.md and
-benchmarks/hopper_settings.png.
+main job, `tfcontact plan hopper`) or one field of the task (`TASK_VARIANTS`) and plans
+the short task from the start-everywhere guess. Accuracy is the verification's end-state
+deviation: the plan's controls replayed in physical time with exact impacts (no
+time-freezing). One run per variant, in one process, one after the other. Writes
+benchmarks/hopper_settings.md and benchmarks/hopper_settings.png.
 
     python scripts/bench_hopper_settings.py          # about 8 minutes on a quiet machine
 """
@@ -28,7 +28,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from tfcontact.fesd import GaussLegendre, NoEquilibration, RadauIIA  # noqa: E402
 from tfcontact.ocp.contact import ContactSolverOptions, solve_contact  # noqa: E402
-from tfcontact.scenes.hopper import hopper_options, hopper_problem  # noqa: E402
+from tfcontact.scenes.hopper import (  # noqa: E402
+    HopperTask,
+    hopper_options,
+    hopper_problem,
+    hopper_task,
+)
 
 Variant = Callable[[ContactSolverOptions], ContactSolverOptions]
 
@@ -54,8 +59,15 @@ VARIANTS: dict[str, Variant] = {
 }
 
 
-def run(name: str, variant: Variant) -> dict:
-    _, _, problem = hopper_problem("short")
+# One field of the problem's `HopperTask` changed (the solver settings stay the default).
+TASK_VARIANTS: dict[str, Callable[[HopperTask], HopperTask]] = {
+    "unscaled gap (gap_scale = 1)": lambda t: replace(t, gap_scale=1.0),
+}
+
+
+def run(name: str, variant: Variant,
+        task_variant: Callable[[HopperTask], HopperTask] = lambda t: t) -> dict:
+    _, _, problem = hopper_problem(task_variant(hopper_task("short")))
     options = variant(hopper_options("short"))
     start = time.perf_counter()
     result = solve_contact(problem, options, verbose=False)
@@ -100,7 +112,7 @@ def table(rows: list[dict]) -> str:
         f"{platform.machine()}, 2 cores)", "",
         "Command: `python scripts/bench_hopper_settings.py` (short task of "
         "`tfcontact plan hopper`, start-everywhere guess, one setting of `hopper_options()` "
-        "changed per row, one run each, in one process).", "",
+        "or of the task changed per row, one run each, in one process).", "",
         "| setting | status | NLPs | IPOPT iterations | NLP solves [s] | compl. residual "
         "| end-state deviation | largest local defect | cost |",
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
@@ -119,11 +131,14 @@ def main() -> None:
     parser.add_argument("--out", default="benchmarks", help="folder of the table and chart")
     parser.add_argument("--only", nargs="*", help="run only these variants (by name)")
     args = parser.parse_args()
-    names = args.only or list(VARIANTS)
-    unknown = [n for n in names if n not in VARIANTS]
+    known = [*VARIANTS, *TASK_VARIANTS]
+    names = args.only or known
+    unknown = [n for n in names if n not in known]
     if unknown:
-        parser.error(f"unknown variants {unknown}; known: {list(VARIANTS)}")
-    rows = [run(name, VARIANTS[name]) for name in names]
+        parser.error(f"unknown variants {unknown}; known: {known}")
+    rows = [run(name, VARIANTS[name]) if name in VARIANTS
+            else run(name, VARIANTS["default (hopper_options)"], TASK_VARIANTS[name])
+            for name in names]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     chart(rows, out / "hopper_settings.png")

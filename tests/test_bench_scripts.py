@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tfcontact.scenes.hopper import hopper_options
+from tfcontact.scenes.hopper import hopper_options, hopper_task
 from tfcontact.scenes.particles import G, point_mass
 
 SCRIPTS = Path(__file__).resolve().parent.parent / "scripts"
@@ -53,3 +53,8 @@ def test_settings_variants_change_one_setting_each():
             assert changed == [], name
         else:
             assert len(changed) == 1, (name, changed)
+    task = hopper_task("short")
+    task_names = [f.name for f in fields(task)]
+    for name, variant in settings.TASK_VARIANTS.items():
+        changed = [n for n in task_names if getattr(variant(task), n) != getattr(task, n)]
+        assert len(changed) == 1, (name, changed)
