@@ -7,12 +7,12 @@ is not a rigid body, see the URDF's comment); nosnoc_py (the bench extra,
 `pip install nosnoc==0.2.0`) is given TF-8's hand-derived model through its public API,
 with the settings of its own hopper example: N = 20, N_FE = 3, Radau IIA with 2 stages,
 Stewart time-freezing, Scholtes with sigma_0 = 100 and 6 homotopy steps; tfcontact runs
-the settings of `tfcontact plan hopper` (`hopper_options("bench")`: the homotopy stops at
-residual 1e-3, where nosnoc_py's six steps end). Both track the
-same reference (T = 1 s, x: 0.1 -> 1.0, apex height 1.0). The script prints and writes a
-markdown table: wall time, NLPs, IPOPT iterations, complementarity residual, and the
-end-state deviation of each plan from the replay of its controls in the event-detecting
-simulation of its own model with exact impacts (no time-freezing).
+the settings of `tfcontact plan hopper` for this task (`hopper_options("bench")`: the
+homotopy runs from sigma_0 = 0.1 to residual 1e-3, where nosnoc_py's six steps end).
+Both track the same reference (T = 1 s, x: 0.1 -> 1.0, apex height 1.0). The script
+prints and writes a markdown table: wall time, NLPs, IPOPT iterations, complementarity
+residual, and the end-state deviation of each plan from the replay of its controls in the
+event-detecting simulation of its own model with exact impacts (no time-freezing).
 """
 
 from __future__ import annotations
