@@ -6,7 +6,7 @@ import pytest
 
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp import ContactProblem, ContactSolverOptions
-from tfcontact.ocp.contact import _transcribe
+from tfcontact.ocp.contact import _perturbed, _transcribe
 from tfcontact.scenes.particles import point_mass
 from tfcontact.timefreezing import time_freeze, with_speed_of_time
 
@@ -55,3 +55,28 @@ def test_bad_contact_problems_are_named(particle):
         ContactSolverOptions(verify_refinement=0)
     with pytest.raises(InvalidInput, match="`gap_tolerance` must be positive"):
         ContactSolverOptions(gap_tolerance=0.0)
+    with pytest.raises(InvalidInput, match="`attempts` must be a positive integer"):
+        ContactSolverOptions(attempts=0)
+    with pytest.raises(InvalidInput, match="`attempts` must be a positive integer"):
+        ContactSolverOptions(attempts=True)
+    with pytest.raises(InvalidInput, match="`restart_noise` must be a positive number"):
+        ContactSolverOptions(restart_noise=-1e-4)
+
+
+def test_a_restart_perturbs_the_guess_but_not_the_start_state(particle):
+    """The restart's guess: seeded Gaussian noise on the boundary states after x0 and on
+    the controls, clipped to the bounds (the clock's lower bound 0 keeps it >= 0)."""
+    u = particle.u
+    problem = ContactProblem(system=particle, q0=[0, 1.5], v0=[0, 0], horizon=2.0,
+                             n_intervals=40, running_cost=u[0] ** 2, u_lower=-10, u_upper=10,
+                             speed_of_time=(1.0, 5.0))
+    ocp, system = _transcribe(problem)
+    one = _perturbed(ocp, 1e-3, seed=1)
+    assert one.x_guess.shape == (41, ocp.x0.size) and one.u_guess.shape == (40, 3)
+    np.testing.assert_array_equal(one.x_guess[0], ocp.x0)
+    step = one.x_guess[1:, system.q_index] - ocp.x0[system.q_index]
+    assert 0.5e-3 < step.std() < 2e-3 and np.abs(step).max() < 1e-2
+    assert np.all(one.x_guess[:, system.clock_index] >= 0.0)
+    assert np.all(one.u_guess[:, 2] >= 1.0)  # speed of time >= s_min
+    np.testing.assert_array_equal(_perturbed(ocp, 1e-3, seed=1).x_guess, one.x_guess)
+    assert not np.array_equal(_perturbed(ocp, 1e-3, seed=2).x_guess, one.x_guess)

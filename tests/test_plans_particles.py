@@ -203,9 +203,10 @@ def test_throwing_ball_with_two_stages_is_caught_by_the_verification():
 def test_particle_friction_reaches_target():
     problem = particle_friction_problem(n_intervals=6)
     options = ContactSolverOptions(scheme=RadauIIA(2), n_finite_elements=3,
-                                   relaxation=LinfPenalty())
+                                   relaxation=LinfPenalty(), attempts=3)
     result = solve_contact(problem, options, verbose=False)
     assert result.success, result.message
+    assert len(result.attempts) == 1  # a plan that succeeds is not solved again
     tf = result.system
     end = np.concatenate([result.y[-1, tf.q_index], result.y[-1, tf.v_index]])
     np.testing.assert_allclose(end, [3.0, 0.0, 0.0, 0.0], atol=1e-6)
@@ -222,11 +223,19 @@ def test_unreachable_target_fails_with_reason():
     """x = 30 m in 2 s with |u| <= 10 N is out of reach: a failed status with the reason."""
     problem = particle_friction_problem((30.0, 0.0, 0.0, 0.0), n_intervals=4)
     options = ContactSolverOptions(scheme=RadauIIA(2), n_finite_elements=3,
-                                   relaxation=LinfPenalty(), nlp=Ipopt(tol=1e-8, max_iter=200))
+                                   relaxation=LinfPenalty(), nlp=Ipopt(tol=1e-8, max_iter=200),
+                                   attempts=2)
     result = solve_contact(problem, options, verbose=False)
     assert not result.success
     assert result.status == "nlp_failed"
     assert "IPOPT did not solve" in result.message
+    # the failed plan was solved again from a perturbed guess, and failed again
+    assert [(a.seed, a.status) for a in result.attempts] == [(None, "nlp_failed"),
+                                                              (1, "nlp_failed")]
+    assert result.attempts[-1].iterations == result.ocp.total_iterations
+    assert result.timings["solve"] == pytest.approx(
+        sum(a.solve_time for a in result.attempts))
+    assert "attempt 2: nlp_failed" in result.summary()
     assert result.ocp.ipopt_status in ("Infeasible_Problem_Detected",
                                        "Maximum_Iterations_Exceeded",
                                        "Restoration_Failed")

@@ -9,6 +9,7 @@ independently (`Verification`).
 """
 
 from tfcontact.ocp.contact import (
+    Attempt,
     ContactProblem,
     ContactResult,
     ContactSolverOptions,
@@ -20,6 +21,7 @@ from tfcontact.ocp.solve import OcpBuild, OcpResult, Transcription, build, solve
 from tfcontact.ocp.verify import Verification
 
 __all__ = [
+    "Attempt",
     "BoundaryHook",
     "Constraint",
     "ContactProblem",

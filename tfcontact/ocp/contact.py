@@ -200,6 +200,14 @@ class ContactSolverOptions:
             the plan, because the impulses recovered from the plan's
             collocation polynomials carry its relaxed complementarity and quadrature
             errors, proportional to them.
+        attempts: solves at most; a plan that fails (homotopy or checks) is solved again
+            from its initial guess perturbed by `restart_noise` (seeded, so runs repeat).
+            Which local solution IPOPT reaches depends on its path, and round-off moves
+            that path: the hopper's short task from starts 1e-9 m apart failed its replay
+            in 1 of 6 runs (benchmarks/hopper_bench.md).
+        restart_noise: standard deviation of the Gaussian perturbation added to the states
+            and controls of the initial guess at the interval boundaries after the first
+            (absolute, in their units; the start state stays fixed).
     """
 
     scheme: Scheme = field(default_factory=lambda: RadauIIA(2))
@@ -216,8 +224,16 @@ class ContactSolverOptions:
     gap_tolerance: float = 1e-3
     cone_tolerance: float = 1e-2
     clock_tolerance: float = 1e-6
+    attempts: int = 1
+    restart_noise: float = 1e-4
 
     def __post_init__(self) -> None:
+        if isinstance(self.attempts, bool) or not isinstance(self.attempts, int) \
+                or self.attempts < 1:
+            raise InvalidInput(f"`attempts` must be a positive integer, got {self.attempts!r}")
+        if not (np.isfinite(self.restart_noise) and self.restart_noise > 0):
+            raise InvalidInput(
+                f"`restart_noise` must be a positive number, got {self.restart_noise!r}")
         if self.verify_method not in VERIFY_METHODS:
             raise InvalidInput(f"`verify_method` must be one of {VERIFY_METHODS}, got "
                                f"{self.verify_method!r}")
@@ -228,6 +244,26 @@ class ContactSolverOptions:
                      "clock_tolerance"):
             if not getattr(self, name) > 0:
                 raise InvalidInput(f"`{name}` must be positive, got {getattr(self, name)}")
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """One solve of a contact plan (`ContactSolverOptions.attempts`).
+
+    Attributes:
+        seed: the perturbation's seed (None: the unperturbed initial guess).
+        status: as `ContactResult.status`.
+        iterations: IPOPT iterations over the homotopy.
+        solve_time, verify_time: seconds.
+        end_state_deviation: the verification's end-state deviation.
+    """
+
+    seed: int | None
+    status: str
+    iterations: int
+    solve_time: float
+    verify_time: float
+    end_state_deviation: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -242,8 +278,10 @@ class ContactResult:
         u: physical controls per interval, (N, n_u); speed_of_time: (N,).
         physical: the `PhysicalTrajectory` (frozen pieces dropped, impacts as jumps).
         verification: the independent checks.
-        timings: seconds by phase ("build", "solve", "verify").
+        timings: seconds by phase ("build", "solve", "verify", "total"), summed over all
+            attempts.
         options: the `ContactSolverOptions` it was solved with.
+        attempts: every solve, this plan's last (more than one after failed plans).
     """
 
     problem: ContactProblem
@@ -257,6 +295,7 @@ class ContactResult:
     verification: Verification
     timings: dict[str, float]
     options: ContactSolverOptions | None = None
+    attempts: tuple[Attempt, ...] = ()
 
     @property
     def success(self) -> bool:
@@ -265,9 +304,7 @@ class ContactResult:
 
     @property
     def status(self) -> str:
-        if not self.ocp.success:
-            return self.ocp.status.name.lower()
-        return "converged" if self.verification.passed else "verification_failed"
+        return _status(self.ocp, self.verification)
 
     @property
     def message(self) -> str:
@@ -277,6 +314,14 @@ class ContactResult:
         """A few lines for a terminal: status, objective, work, residual, time, checks."""
         o = self.ocp
         t = self.timings
+        tried = []
+        if len(self.attempts) > 1:
+            tried = [f"attempts: {len(self.attempts)} (the wall times above are their sums, "
+                     f"the other figures the last attempt's)"]
+            tried += [f"  attempt {k + 1}: {a.status}, {a.iterations} IPOPT iterations, "
+                      f"end-state deviation {a.end_state_deviation:.2e}"
+                      + ("" if a.seed is None else f", guess perturbed (seed {a.seed})")
+                      for k, a in enumerate(self.attempts)]
         return "\n".join([
             f"status: {self.status}",
             f"objective: {o.cost:.6g}   NLPs: {o.n_nlps}   IPOPT iterations: "
@@ -286,7 +331,28 @@ class ContactResult:
             f"impacts (fully frozen pieces of the plan) at t = "
             f"{np.round(self.physical.impact_times, 4).tolist()} s",
             self.verification.summary(),
+            *tried,
         ])
+
+
+def _status(ocp: OcpResult, verification: Verification) -> str:
+    if not ocp.success:
+        return ocp.status.name.lower()
+    return "converged" if verification.passed else "verification_failed"
+
+
+def _perturbed(ocp: OptimalControlProblem, noise: float,
+               seed: int) -> OptimalControlProblem:
+    """The OCP with its initial guess at the interval boundaries perturbed (seeded)."""
+    rng = np.random.default_rng(seed)
+    n_int, n_x, n_u = ocp.n_intervals, ocp.x0.size, ocp.u_lower.size
+    x = np.array(np.broadcast_to(ocp.x0 if ocp.x_guess is None else ocp.x_guess,
+                                 (n_int + 1, n_x)))
+    u = np.array(np.broadcast_to(0.0 if ocp.u_guess is None else ocp.u_guess, (n_int, n_u)))
+    x[1:] += noise * rng.standard_normal((n_int, n_x))
+    u += noise * rng.standard_normal(u.shape)
+    return dataclasses.replace(ocp, x_guess=np.clip(x, ocp.x_lower, ocp.x_upper),
+                               u_guess=np.clip(u, ocp.u_lower, ocp.u_upper))
 
 
 def _transcribe(problem: ContactProblem) -> tuple[OptimalControlProblem, TimeFreezingSystem]:
@@ -599,7 +665,9 @@ def solve_contact(
 
     Returns:
         A `ContactResult`; `success` only if the homotopy converged and the plan passed
-        the independent checks.
+        the independent checks. With `options.attempts` > 1 a failed plan is solved again
+        from a perturbed guess; the result is the first plan that succeeded, else the
+        last one, and `attempts` lists them all.
     """
     options = options if options is not None else ContactSolverOptions()
     start = time.perf_counter()
@@ -610,20 +678,44 @@ def solve_contact(
     w0 = None
     if initial_guess is not None:
         ocp_problem, w0 = _warm_start(ocp_problem, initial_guess, transcription)
-    result = solve(ocp_problem, discretization=transcription, relaxation=options.relaxation,
-                   homotopy=options.homotopy, nlp=options.nlp, w0=w0, verbose=verbose,
-                   throw=False)
-    solved = time.perf_counter()
-    physical = to_physical_time(system, result.t, result.x)
-    verification = verify_plan(problem, system, result, physical, options)
-    done = time.perf_counter()
+    attempts: list[Attempt] = []
+    totals = {"build": 0.0, "solve": 0.0, "verify": 0.0}
+    for k in range(options.attempts):
+        seed = None if k == 0 else k
+        if seed is not None:
+            last = attempts[-1]
+            if verbose:
+                print(f"attempt {k + 1} of {options.attempts}: the last plan ended "
+                      f"{last.status} (end-state deviation {last.end_state_deviation:.2e}); "
+                      f"solving again from the initial guess perturbed by "
+                      f"{options.restart_noise:g} (seed {seed})", flush=True)
+            attempt_problem, attempt_w0 = _perturbed(ocp_problem, options.restart_noise,
+                                                     seed), None
+        else:
+            attempt_problem, attempt_w0 = ocp_problem, w0
+        result = solve(attempt_problem, discretization=transcription,
+                       relaxation=options.relaxation, homotopy=options.homotopy,
+                       nlp=options.nlp, w0=attempt_w0, verbose=verbose, throw=False)
+        solved = time.perf_counter()
+        physical = to_physical_time(system, result.t, result.x)
+        verification = verify_plan(problem, system, result, physical, options)
+        verify_time = time.perf_counter() - solved
+        totals["build"] += result.build_time
+        totals["solve"] += result.solve_time
+        totals["verify"] += verify_time
+        status = _status(result, verification)
+        attempts.append(Attempt(seed=seed, status=status, iterations=result.total_iterations,
+                                solve_time=result.solve_time, verify_time=verify_time,
+                                end_state_deviation=verification.end_state_deviation))
+        if status == "converged":
+            break
     n_u = system.u.numel() - 1
     contact = ContactResult(
         problem=problem, system=system, ocp=result, tau=result.t, y=result.x,
         u=result.u[:, :n_u], speed_of_time=result.u[:, n_u], physical=physical,
         verification=verification, options=options,
-        timings={"build": result.build_time, "solve": result.solve_time,
-                 "verify": done - solved, "total": done - start},
+        timings={**totals, "total": time.perf_counter() - start},
+        attempts=tuple(attempts),
     )
     if verbose:
         print(contact.summary(), flush=True)

@@ -62,9 +62,10 @@ def solver_record(result: Any) -> dict[str, Any]:
 
     Keys: status, message, objective, cost, nlp_count, iterations (total),
     iterations_per_nlp, complementarity_residual, timings [s] (build, solve, verify,
-    total), settings (discretisation, relaxation, homotopy, IPOPT, horizons, N, speed of
-    time bounds) and history (one dict per homotopy step: sigma, iterations, objective,
-    residual, seconds, ipopt_status).
+    total, summed over attempts), settings (discretisation, relaxation, homotopy, IPOPT,
+    attempts, horizons, N, speed of time bounds), history (one dict per homotopy step:
+    sigma, iterations, objective, residual, seconds, ipopt_status) and attempts (one dict
+    per solve: seed, status, iterations, solve_time, verify_time, end_state_deviation).
     """
     ocp = result.ocp
     build = ocp.build
@@ -89,7 +90,9 @@ def solver_record(result: Any) -> dict[str, Any]:
     if options is not None:
         settings.update({"homotopy": dataclasses.asdict(options.homotopy),
                          "ipopt": dataclasses.asdict(options.nlp),
-                         "relaxation_options": repr(options.relaxation)})
+                         "relaxation_options": repr(options.relaxation),
+                         "attempts": options.attempts,
+                         "restart_noise": options.restart_noise})
     return _jsonable({
         "status": result.status,
         "message": result.message,
@@ -102,7 +105,12 @@ def solver_record(result: Any) -> dict[str, Any]:
         "timings": dict(result.timings),
         "settings": settings,
         "history": [dataclasses.asdict(step) for step in mpcc.history],
+        "attempts": _attempts(result),
     })
+
+
+def _attempts(result: Any) -> list[dict[str, Any]]:
+    return [dataclasses.asdict(a) for a in getattr(result, "attempts", ())]
 
 
 def _samples(ocp: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -287,6 +295,7 @@ def plan_summary(result: Any) -> dict[str, Any]:
         "complementarity_residual": ocp.residual,
         "timings": dict(result.timings),
         "impact_times": result.physical.impact_times.tolist(),
+        "attempts": _attempts(result),
         "message": result.message,
         "verification": result.verification.to_dict(),
     })
