@@ -1,7 +1,7 @@
 """The `tfcontact` command: plan, replay.
 
     tfcontact plan --list
-    tfcontact plan hopper --out DIR [--task long] [--quiet]
+    tfcontact plan hopper --out DIR [--task long] [--attempts N] [--quiet]
     tfcontact replay DIR/trajectory.npz [--html OUT] [--open]
 """
 
@@ -27,7 +27,8 @@ def _plan(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     out = Path(args.out) if args.out else Path("out") / args.name
-    report = run_plan(args.name, out, task=args.task, verbose=not args.quiet)
+    report = run_plan(args.name, out, task=args.task, attempts=args.attempts,
+                      verbose=not args.quiet)
     return 0 if report.success else 1
 
 
@@ -49,6 +50,9 @@ def main(argv: list[str] | None = None) -> int:
     plan.add_argument("--list", action="store_true", help="list the available plans")
     plan.add_argument("--out", help="output folder (default out/NAME)")
     plan.add_argument("--task", default=None, help="a variant of the plan (hopper: short, long)")
+    plan.add_argument("--attempts", type=int, default=None,
+                      help="solve a failed plan again from a perturbed guess, up to this "
+                           "many solves in all (default: the plan's, 3 for the hopper)")
     plan.add_argument("--quiet", action="store_true", help="no progress output")
     plan.set_defaults(func=_plan)
 

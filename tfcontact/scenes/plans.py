@@ -7,6 +7,7 @@ into DIR: `trajectory.npz` + `trajectory.json` (the viz layer's format), the fig
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from collections.abc import Callable
@@ -58,9 +59,10 @@ PLANS: dict[str, Plan] = {
 
 
 def run_plan(name: str, out_dir: Path | str, *, task: str | None = None,
-             verbose: bool = True) -> PlanReport:
+             attempts: int | None = None, verbose: bool = True) -> PlanReport:
     """Solve the plan `name`, verify it and write trajectory, figures and replay to out_dir.
 
+    `attempts` overrides the plan's number of solves (`ContactSolverOptions.attempts`).
     Files are written whatever the outcome (a failed plan's last iterate is saved with its
     status), so that no output is lost.
     """
@@ -77,6 +79,8 @@ def run_plan(name: str, out_dir: Path | str, *, task: str | None = None,
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     robot, ground, problem, options = plan.build(task)
+    if attempts is not None:
+        options = dataclasses.replace(options, attempts=attempts)
     if verbose:
         print(f"plan {name} ({task or plan.tasks[0]}): {robot.model.name}, nq = {robot.nq}, "
               f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
