@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     plan.add_argument("--task", default=None, help="a variant of the plan (hopper: short, long)")
     plan.add_argument("--attempts", type=int, default=None,
                       help="solve a failed plan again from a perturbed guess, up to this "
-                           "many solves in all (default: the plan's, 3 for the hopper)")
+                           "many solves in all (default: the plan's; hopper: 3 for the short task)")
     plan.add_argument("--quiet", action="store_true", help="no progress output")
     plan.set_defaults(func=_plan)
 
