@@ -205,9 +205,9 @@ class ContactSolverOptions:
             Which local solution IPOPT reaches depends on its path, and round-off moves
             that path: the hopper's short task from starts 1e-9 m apart failed its replay
             in 1 of 6 runs (benchmarks/hopper_bench.md).
-        restart_noise: standard deviation of the Gaussian perturbation added to the states
-            and controls of the initial guess at the interval boundaries after the first
-            (absolute, in their units; the start state stays fixed).
+        restart_noise: standard deviation of the Gaussian perturbation that a restart adds
+            to the initial guess: to the states at the interval boundaries (not the start
+            state, which is fixed) and to the controls (absolute, in their units).
     """
 
     scheme: Scheme = field(default_factory=lambda: RadauIIA(2))
