@@ -204,7 +204,7 @@ class ContactSolverOptions:
             from its initial guess perturbed by `restart_noise` (seeded, so runs repeat).
             Which local solution IPOPT reaches depends on its path, and round-off moves
             that path: the hopper's short task from starts 1e-9 m apart failed its replay
-            in 1 of 6 runs (benchmarks/hopper_bench.md).
+            in 1 of 10 runs (benchmarks/hopper_bench.md).
         restart_noise: standard deviation of the Gaussian perturbation that a restart adds
             to the initial guess: to the states at the interval boundaries (not the start
             state, which is fixed) and to the controls (absolute, in their units).

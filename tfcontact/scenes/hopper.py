@@ -232,7 +232,7 @@ def hopper_options(task: HopperTask | str = "short"):
 
     The short task allows 3 attempts (`ContactSolverOptions.attempts`): which local
     solution the homotopy reaches depends on round-off, and of its plans from starts
-    moved by 1e-9 m one in six failed its replay (deviation 5.2e-2 against the tolerance
+    moved by 1e-9 m one in ten failed its replay (deviation 5.2e-2 against the tolerance
     5e-2); a restart from a perturbed guess passed. The long task's plans fail their
     open-loop replay at every such perturbation measured, restarts included (local
     defects of 3e-3 amplified over five or six impacts), so it keeps one attempt; so does
