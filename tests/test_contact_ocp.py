@@ -61,6 +61,9 @@ def test_bad_contact_problems_are_named(particle):
         ContactSolverOptions(attempts=True)
     with pytest.raises(InvalidInput, match="`restart_noise` must be a positive number"):
         ContactSolverOptions(restart_noise=-1e-4)
+    # counts from numpy are counts too (one check for every layer, `positive_int`)
+    assert ContactSolverOptions(attempts=np.int64(2)).attempts == 2
+    assert ContactProblem(**{**base, "n_intervals": np.int64(4)}).n_intervals == 4
 
 
 def test_a_restart_perturbs_the_guess_but_not_the_start_state(particle):

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 
 class TfcontactError(Exception):
     """Base class of every error tfcontact raises on purpose."""
@@ -14,6 +16,14 @@ class TfcontactError(Exception):
 
 class InvalidInput(TfcontactError, ValueError):
     """An argument has the wrong value, shape or type."""
+
+
+def positive_int(value: object, name: str) -> int:
+    """`value` as an int if it is a positive integer (not a bool), else `InvalidInput`
+    naming the argument `name`."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise InvalidInput(f"`{name}` must be a positive integer, got {value!r}")
+    return int(value)
 
 
 class IncompatibleOptions(TfcontactError, ValueError):

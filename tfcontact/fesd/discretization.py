@@ -42,17 +42,11 @@ from typing import Literal
 import casadi as ca
 import numpy as np
 
-from tfcontact.errors import InvalidInput
+from tfcontact.errors import InvalidInput, positive_int
 from tfcontact.fesd.forms import Form, form_of
 from tfcontact.fesd.system import HeavisideSystem, StewartSystem
 from tfcontact.fesd.tableau import RadauIIA, Scheme, Tableau, as_tableau
 from tfcontact.mpcc.problem import Mpcc
-
-
-def _positive_int(value: object, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise InvalidInput(f"`{name}` must be a positive integer, got {value!r}")
-    return int(value)
 
 
 @dataclass(frozen=True)
@@ -70,8 +64,8 @@ class FesdGrid:
     horizon: float
 
     def __post_init__(self) -> None:
-        _positive_int(self.n_intervals, "n_intervals")
-        _positive_int(self.n_finite_elements, "n_finite_elements")
+        positive_int(self.n_intervals, "n_intervals")
+        positive_int(self.n_finite_elements, "n_finite_elements")
         if not (np.isfinite(self.horizon) and self.horizon > 0):
             raise InvalidInput(f"`horizon` must be a positive number [s], got {self.horizon!r}")
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from tfcontact.errors import InvalidInput, SolveFailed
+from tfcontact.errors import InvalidInput, SolveFailed, positive_int
 from tfcontact.fesd.discretization import (
     DEFAULT_METHOD,
     DEFAULT_SCHEME,
@@ -160,8 +160,8 @@ def simulate(
     Raises:
         InvalidInput: wrong shapes or counts; SolveFailed: a step failed and `throw`.
     """
-    n_steps = int(_check_count(n_steps, "n_steps"))
-    n_fe = int(_check_count(n_finite_elements, "n_finite_elements"))
+    n_steps = positive_int(n_steps, "n_steps")
+    n_fe = positive_int(n_finite_elements, "n_finite_elements")
     if not isinstance(system, StewartSystem | HeavisideSystem):
         raise InvalidInput(
             f"`system` must be a StewartSystem or HeavisideSystem, got {type(system).__name__}"
@@ -260,9 +260,3 @@ def _theta(disc: Discretization, algebraic: dict[str, np.ndarray]) -> np.ndarray
     if isinstance(disc.system, StewartSystem):
         return algebraic["theta"]
     return np.concatenate([algebraic["alpha"], 1 - algebraic["alpha"]], axis=2)
-
-
-def _check_count(value: object, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise InvalidInput(f"`{name}` must be a positive integer, got {value!r}")
-    return int(value)

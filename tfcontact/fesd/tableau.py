@@ -23,7 +23,7 @@ from functools import cache
 import numpy as np
 from numpy.polynomial import legendre
 
-from tfcontact.errors import InvalidInput
+from tfcontact.errors import InvalidInput, positive_int
 
 _CHECK_TOL = 1e-12
 _MAX_STAGES = 9
@@ -66,8 +66,7 @@ class Tableau:
             raise InvalidInput(
                 f"the row sums of `A` must equal `c`: got {rows.tolist()} and {c.tolist()}"
             )
-        if not (isinstance(self.order, int | np.integer) and self.order >= 1):
-            raise InvalidInput(f"`order` must be a positive integer, got {self.order!r}")
+        positive_int(self.order, "order")
         for name, value in (("A", A), ("b", b), ("c", c)):
             value.setflags(write=False)
             object.__setattr__(self, name, value)

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from tfcontact.errors import InvalidInput, SolveFailed, TfcontactError
+from tfcontact.errors import InvalidInput, SolveFailed, TfcontactError, positive_int
 from tfcontact.fesd import Fesd, RadauIIA, Scheme, simulate
 from tfcontact.fesd.tableau import as_tableau
 from tfcontact.mpcc import Homotopy, Ipopt, MpccStatus, Relaxation, Scholtes
@@ -130,10 +130,7 @@ class ContactProblem:
             object.__setattr__(self, name, value)
         if not (np.isfinite(self.horizon) and self.horizon > 0):
             raise InvalidInput(f"`horizon` must be a positive time [s], got {self.horizon!r}")
-        if isinstance(self.n_intervals, bool) or not isinstance(self.n_intervals, int) or (
-                self.n_intervals < 1):
-            raise InvalidInput(f"`n_intervals` must be a positive integer, got "
-                               f"{self.n_intervals!r}")
+        positive_int(self.n_intervals, "n_intervals")
         s_min, s_max = self.speed_of_time
         if not 0 < s_min <= s_max:
             raise InvalidInput(
@@ -228,9 +225,7 @@ class ContactSolverOptions:
     restart_noise: float = 1e-4
 
     def __post_init__(self) -> None:
-        if isinstance(self.attempts, bool) or not isinstance(self.attempts, int) \
-                or self.attempts < 1:
-            raise InvalidInput(f"`attempts` must be a positive integer, got {self.attempts!r}")
+        positive_int(self.attempts, "attempts")
         if not (np.isfinite(self.restart_noise) and self.restart_noise > 0):
             raise InvalidInput(
                 f"`restart_noise` must be a positive number, got {self.restart_noise!r}")

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from tfcontact.errors import InvalidInput
+from tfcontact.errors import InvalidInput, positive_int
 from tfcontact.fesd.system import HeavisideSystem, StewartSystem
 from tfcontact.symbolic import check_depends
 
@@ -141,9 +141,7 @@ class OptimalControlProblem:
         object.__setattr__(self, "x0", x0)
         if not (np.isfinite(self.horizon) and self.horizon > 0):
             raise InvalidInput(f"`horizon` must be a positive number [s], got {self.horizon!r}")
-        n = self.n_intervals
-        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-            raise InvalidInput(f"`n_intervals` must be a positive integer, got {n!r}")
+        n = positive_int(self.n_intervals, "n_intervals")
         for name in ("lagrange", "mayer"):
             expr = getattr(self, name)
             if isinstance(expr, float | int):

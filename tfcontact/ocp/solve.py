@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from tfcontact.errors import InvalidInput, SolveFailed
+from tfcontact.errors import InvalidInput, SolveFailed, positive_int
 from tfcontact.fesd.discretization import (
     DEFAULT_METHOD,
     DEFAULT_SCHEME,
@@ -53,9 +53,7 @@ class Transcription:
     method: Method = DEFAULT_METHOD
 
     def __post_init__(self) -> None:
-        n = self.n_finite_elements
-        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-            raise InvalidInput(f"`n_finite_elements` must be a positive integer, got {n!r}")
+        positive_int(self.n_finite_elements, "n_finite_elements")
 
 
 DEFAULT_TRANSCRIPTION = Transcription()

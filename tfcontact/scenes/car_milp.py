@@ -48,7 +48,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from tfcontact.errors import InvalidInput
+from tfcontact.errors import InvalidInput, positive_int
 from tfcontact.scenes.car import NOMINAL, TF13, TURBO, CarProblem
 
 _EPS = 1e-6  # [m/s] strictness margin of the sampled guards (nosnoc's script uses 1e-6)
@@ -218,8 +218,7 @@ def build_car_milp(
         sampled_guards: drop the invariants inside the intervals and force the switch
             from the sampled v_k instead (see the module docstring).
     """
-    if not (isinstance(n_intervals, int | np.integer) and n_intervals >= 1):
-        raise InvalidInput(f"`n_intervals` must be a positive integer, got {n_intervals!r}")
+    positive_int(n_intervals, "n_intervals")
     if not (np.isfinite(final_time) and final_time > 0):
         raise InvalidInput(f"`final_time` must be a positive number of seconds, got {final_time}")
     if initial_mode not in (NOMINAL, TURBO):
