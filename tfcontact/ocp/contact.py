@@ -676,18 +676,17 @@ def solve_contact(
     attempts: list[Attempt] = []
     totals = {"build": 0.0, "solve": 0.0, "verify": 0.0}
     for k in range(options.attempts):
-        seed = None if k == 0 else k
+        seed = k or None  # the first solve starts from the unperturbed guess
+        attempt_problem, attempt_w0 = ocp_problem, w0
         if seed is not None:
-            last = attempts[-1]
             if verbose:
+                last = attempts[-1]
                 print(f"attempt {k + 1} of {options.attempts}: the last plan ended "
                       f"{last.status} (end-state deviation {last.end_state_deviation:.2e}); "
                       f"solving again from the initial guess perturbed by "
                       f"{options.restart_noise:g} (seed {seed})", flush=True)
-            attempt_problem, attempt_w0 = _perturbed(ocp_problem, options.restart_noise,
-                                                     seed), None
-        else:
-            attempt_problem, attempt_w0 = ocp_problem, w0
+            attempt_problem = _perturbed(ocp_problem, options.restart_noise, seed)
+            attempt_w0 = None
         result = solve(attempt_problem, discretization=transcription,
                        relaxation=options.relaxation, homotopy=options.homotopy,
                        nlp=options.nlp, w0=attempt_w0, verbose=verbose, throw=False)
