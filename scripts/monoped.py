@@ -65,17 +65,6 @@ def robot_spec() -> RobotSpec:
                      contacts=(ContactSpec("foot", FOOT_RADIUS),))
 
 
-def scene(mp: MonopedProblem) -> dict:
-    task = mp.task
-    return {
-        "terrain": {"type": "flat", "height": -FOOT_RADIUS},
-        "holes": [{"x_c": c, "half_width": task.hole_half_width, "depth": task.hole_depth}
-                  for c in task.holes],
-        "note": "the foot sphere (radius 0.028 m) rests on the ground lowered by its radius: "
-                "the gap is TF-9's point-foot gap p_foot,z",
-    }
-
-
 def plan_checks(mp: MonopedProblem, result: ContactResult) -> dict:
     """Task-level numbers of a plan: flights, goal error, hole clearance."""
     ocp = result.ocp
@@ -99,7 +88,7 @@ def plan_checks(mp: MonopedProblem, result: ContactResult) -> dict:
 def to_trajectory(mp: MonopedProblem, result: ContactResult):
     from tfcontact.viz.plan import trajectory_from_result
 
-    return trajectory_from_result(result, robot_spec(), scene(mp))
+    return trajectory_from_result(result, robot_spec(), mp.scene())
 
 
 def path_figure(mp: MonopedProblem, result: ContactResult, path: Path) -> None:

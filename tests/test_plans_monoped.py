@@ -11,10 +11,14 @@ import numpy as np
 import pytest
 
 from tfcontact.errors import InvalidInput
-from tfcontact.fesd import RadauIIA
-from tfcontact.mpcc import Homotopy, Ipopt
-from tfcontact.ocp.contact import ContactSolverOptions, solve_contact
-from tfcontact.scenes.monoped import FOOT_RADIUS, REDUCED_TASK, MonopedTask, monoped_problem
+from tfcontact.ocp.contact import solve_contact
+from tfcontact.scenes.monoped import (
+    FOOT_RADIUS,
+    REDUCED_TASK,
+    MonopedTask,
+    monoped_options,
+    monoped_problem,
+)
 
 
 def test_gap_is_tf9_point_foot_gap():
@@ -64,14 +68,9 @@ def test_bad_task():
 )
 def test_reduced_monoped_plan_hops_over_the_hole():
     mp = monoped_problem(REDUCED_TASK)
-    # IPOPT's monotone barrier update: with the adaptive one the second NLP ran for more
-    # than 7 minutes on a busy machine (stopped), see benchmarks/monoped_settings.md.
-    # The hopper's homotopy tolerance 1e-4 (measured: 56 s of solves on a quiet machine).
-    options = ContactSolverOptions(
-        scheme=RadauIIA(2), n_finite_elements=3,
-        homotopy=Homotopy(sigma_0=1.0, kappa=0.1, tolerance=1e-4, max_nlps=6),
-        nlp=Ipopt(tol=1e-8, max_iter=1000, options={"mu_strategy": "monotone"}),
-    )
+    # The CLI's settings (`tfcontact plan monoped --task reduced`): Scholtes down to 1e-4,
+    # IPOPT's monotone barrier update (measured: 56 s of solves on a quiet machine).
+    options = monoped_options("reduced")
     result = solve_contact(mp.problem, options, verbose=False)
     assert result.success, result.message
     # Reaches its goal: the terminal constraint q(T) = q_goal, to the NLP tolerance.

@@ -2,6 +2,7 @@
 
     tfcontact plan --list
     tfcontact plan hopper --out DIR [--task long] [--attempts N] [--quiet]
+    tfcontact plan monoped --out DIR [--task reduced]
     tfcontact replay DIR/trajectory.npz [--html OUT] [--open]
 """
 
@@ -49,7 +50,8 @@ def main(argv: list[str] | None = None) -> int:
     plan.add_argument("name", nargs="?", help="the plan to solve (see --list)")
     plan.add_argument("--list", action="store_true", help="list the available plans")
     plan.add_argument("--out", help="output folder (default out/NAME)")
-    plan.add_argument("--task", default=None, help="a variant of the plan (hopper: short, long)")
+    plan.add_argument("--task", default=None,
+                      help="a variant of the plan (hopper: short, long; monoped: full, reduced)")
     plan.add_argument("--attempts", type=int, default=None,
                       help="solve a failed plan again from a perturbed guess, up to this "
                            "many solves in all (default: the plan's; hopper: 3 for the short task)")

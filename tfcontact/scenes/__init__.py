@@ -3,6 +3,6 @@
 `PLANS` lists the robot plans of `tfcontact plan`; `run_plan` runs one.
 """
 
-from tfcontact.scenes.plans import PLANS, Plan, PlanReport, run_plan
+from tfcontact.scenes.plans import PLANS, Plan, PlanReport, PlanSetup, run_plan
 
-__all__ = ["PLANS", "Plan", "PlanReport", "run_plan"]
+__all__ = ["PLANS", "Plan", "PlanReport", "PlanSetup", "run_plan"]

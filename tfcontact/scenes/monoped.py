@@ -89,6 +89,51 @@ REDUCED_TASK = MonopedTask(horizon=1.0, n_intervals=10, q_goal=(1.0, 0.4, 0.0, 0
                            speed_of_time=(1.0, 5.0), stagewise_clock=False)
 """A reduced task for tests: one hole (x in [0.25, 0.75]), T = 1 s, N = 10."""
 
+FULL_TASK = MonopedTask(hole_form="bump", speed_of_time=(1.0, 5.0), stagewise_clock=False)
+"""[AUTO23]'s task as `scripts/monoped.py` and `tfcontact plan monoped` solve it: the
+holes as bumps (from the start-everywhere guess the ellipses end locally infeasible, with
+the foot parked on a hole's edge), speed of time in [1, 5] and the clock constrained at T
+only, as in the authors' `robot_ocp.m` (benchmarks/monoped_settings.md)."""
+
+MONOPED_TASKS = {"full": FULL_TASK, "reduced": REDUCED_TASK}
+
+
+def monoped_task(name: str = "full") -> MonopedTask:
+    """The named TF-9 task: "full" (`FULL_TASK`) or "reduced" (`REDUCED_TASK`).
+
+    Raises:
+        InvalidInput: an unknown name.
+    """
+    if name not in MONOPED_TASKS:
+        raise InvalidInput(f"unknown monoped task {name!r}; tasks: {', '.join(MONOPED_TASKS)}")
+    return MONOPED_TASKS[name]
+
+
+def monoped_options(name: str = "full"):
+    """The solver settings of a monoped plan (`ContactSolverOptions`).
+
+    Both tasks: Scholtes from sigma_0 = 1 down to a residual of 1e-4 (the hopper's), IPOPT's
+    monotone barrier update (with the adaptive one the reduced task's second NLP ran for
+    over 7 minutes), 1000 iterations per NLP. "full" uses Radau IIA with 3 stages (order 5,
+    as [AUTO23]); "reduced" 2 stages (with 3 its homotopy ends infeasible; with 2 it
+    converged on an earlier machine and reaches the iteration cap on another). Neither
+    gives a verified plan yet (benchmarks/monoped_settings.md).
+
+    Raises:
+        InvalidInput: an unknown name.
+    """
+    from tfcontact.fesd import RadauIIA
+    from tfcontact.mpcc import Homotopy, Ipopt, Scholtes
+    from tfcontact.ocp.contact import ContactSolverOptions
+
+    monoped_task(name)
+    return ContactSolverOptions(
+        scheme=RadauIIA(3 if name == "full" else 2), n_finite_elements=3,
+        relaxation=Scholtes(),
+        homotopy=Homotopy(sigma_0=1.0, kappa=0.1, tolerance=1e-4, max_nlps=6),
+        nlp=Ipopt(tol=1e-8, max_iter=1000, options={"mu_strategy": "monotone"}),
+    )
+
 
 @dataclass(frozen=True, eq=False)
 class MonopedProblem:
@@ -111,6 +156,18 @@ class MonopedProblem:
     knee: ca.Function
     foot: ca.Function
 
+    def scene(self) -> dict:
+        """The scene of the plan's trajectory sidecar: the lowered ground and the holes."""
+        task = self.task
+        return {
+            "terrain": {"type": "flat", "height": float(self.ground.height),
+                        "normal": [float(c) for c in self.ground.normal]},
+            "holes": [{"x_c": c, "half_width": task.hole_half_width, "depth": task.hole_depth,
+                       "form": task.hole_form} for c in task.holes],
+            "note": "the foot sphere (radius 0.028 m) rests on the ground lowered by its "
+                    "radius: the gap is TF-9's point-foot gap p_foot,z",
+        }
+
     def hole_values(self, q: np.ndarray) -> np.ndarray:
         """((p_x - x_c) / a)^2 + (p_z / b)^2 - 1 per hole at configurations q (n, 4) -> (n, k);
         >= 0 outside the holes."""
@@ -120,14 +177,16 @@ class MonopedProblem:
                          for c in self.task.holes], axis=1).reshape(len(p), -1)
 
 
-def monoped_problem(task: MonopedTask | None = None) -> MonopedProblem:
+def monoped_problem(task: MonopedTask | str | None = None) -> MonopedProblem:
     """Build TF-9's OCP for the project's monoped URDF.
 
     State bounds ([AUTO23] section 6): q_x >= -0.05, 0.2 <= q_z <= 0.55,
     |phi_hip| <= 3 pi / 8, |phi_knee| <= pi / 2. Path constraints at every stage point:
     p_foot,x, p_knee,x >= -0.05; p_knee,z >= 0.05; -0.005 <= p_foot,z <= 0.2; the holes.
-    Terminal constraint q(T) = q_goal; cost int u^T u dt (physical time).
+    Terminal constraint q(T) = q_goal; cost int u^T u dt (physical time). `task` may be a
+    `MonopedTask` or a name of `monoped_task`.
     """
+    task = monoped_task(task) if isinstance(task, str) else task
     task = task if task is not None else MonopedTask()
     robot = load_robot("monoped", base="planar_xz",
                        contacts=(ContactSpec("foot", FOOT_RADIUS),))

@@ -31,20 +31,45 @@ class PlanReport:
 
 
 @dataclass(frozen=True)
+class PlanSetup:
+    """What a plan needs to run: the robot, ground, problem, solver options and the scene
+    stored in the trajectory's sidecar."""
+
+    robot: Any
+    ground: Any
+    problem: Any
+    options: Any
+    scene: dict
+
+
+@dataclass(frozen=True)
 class Plan:
-    """A named robot plan: `build(task)` gives (robot, ground, ContactProblem, options)."""
+    """A named robot plan: `build(task)` gives its `PlanSetup` (task None: the first)."""
 
     name: str
     summary: str
-    build: Callable[[str | None], tuple[Any, Any, Any, Any]]
+    build: Callable[[str | None], PlanSetup]
     tasks: tuple[str, ...]
 
 
-def _hopper(task: str | None):
+def _flat(ground: Any) -> dict:
+    return {"terrain": {"type": "flat", "height": float(ground.height),
+                        "normal": [float(c) for c in ground.normal]}}
+
+
+def _hopper(task: str | None) -> PlanSetup:
     from tfcontact.scenes.hopper import hopper_options, hopper_problem
 
     robot, ground, problem = hopper_problem(task or "short")
-    return robot, ground, problem, hopper_options(task or "short")
+    return PlanSetup(robot, ground, problem, hopper_options(task or "short"), _flat(ground))
+
+
+def _monoped(task: str | None) -> PlanSetup:
+    from tfcontact.scenes.monoped import monoped_options, monoped_problem
+
+    mp = monoped_problem(task or "full")
+    return PlanSetup(mp.robot, mp.ground, mp.problem, monoped_options(task or "full"),
+                     mp.scene())
 
 
 PLANS: dict[str, Plan] = {
@@ -54,6 +79,14 @@ PLANS: dict[str, Plan] = {
                 "(--task long: two jumps to x = 1.3)",
         build=_hopper,
         tasks=("short", "long"),
+    ),
+    "monoped": Plan(
+        name="monoped",
+        summary="Capler monoped (robots/monoped.urdf), TF-9: hop over three holes to x = 3 "
+                "(--task reduced: one hole, to x = 1); not solved yet: its plans fail "
+                "the verification (exit status 1)",
+        build=_monoped,
+        tasks=("full", "reduced"),
     ),
 }
 
@@ -78,16 +111,15 @@ def run_plan(name: str, out_dir: Path | str, *, task: str | None = None,
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    robot, ground, problem, options = plan.build(task)
+    setup = plan.build(task)
+    robot, problem, options = setup.robot, setup.problem, setup.options
     if attempts is not None:
         options = dataclasses.replace(options, attempts=attempts)
     if verbose:
         print(f"plan {name} ({task or plan.tasks[0]}): {robot.model.name}, nq = {robot.nq}, "
               f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
     result = solve_contact(problem, options, verbose=verbose)
-    scene = {"terrain": {"type": "flat", "height": float(ground.height),
-                         "normal": [float(c) for c in ground.normal]}}
-    trajectory = trajectory_from_result(result, robot.spec, scene)
+    trajectory = trajectory_from_result(result, robot.spec, setup.scene)
     npz, sidecar = save_trajectory(out / "trajectory.npz", trajectory)
     figures = plot_trajectory(trajectory, out)
     page = replay(trajectory, html=out / "replay.html", robot=robot)
