@@ -40,6 +40,7 @@ from tfcontact.scenes.monoped import (
     REDUCED_TASK,
     MonopedProblem,
     MonopedTask,
+    monoped_options,
     monoped_problem,
 )
 
@@ -52,7 +53,8 @@ def solver_options(args: argparse.Namespace) -> ContactSolverOptions:
     ipopt = {"mu_strategy": args.mu_strategy}
     return ContactSolverOptions(
         scheme=RadauIIA(args.stages), n_finite_elements=args.n_fe, relaxation=relaxation,
-        homotopy=Homotopy(sigma_0=args.sigma0, kappa=args.kappa, tolerance=args.comp_tol),
+        homotopy=Homotopy(sigma_0=args.sigma0, kappa=args.kappa, tolerance=args.comp_tol,
+                          max_nlps=args.max_nlps),
         nlp=Ipopt(tol=1e-8, max_iter=args.max_iter, options=ipopt),
         verify_refinement=args.verify_refinement,
     )
@@ -213,15 +215,19 @@ def options_text(args: argparse.Namespace) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the reduced one-hole task")
+    # Defaults: the settings of `tfcontact plan monoped` (monoped_options("full")).
+    plan = monoped_options("full")
     parser.add_argument("--n-intervals", type=int, default=None)
     parser.add_argument("--stages", type=int, default=None)
-    parser.add_argument("--n-fe", type=int, default=3)
+    parser.add_argument("--n-fe", type=int, default=plan.n_finite_elements)
     parser.add_argument("--relaxation", choices=sorted(RELAXATIONS), default="scholtes")
-    parser.add_argument("--sigma0", type=float, default=1.0)
-    parser.add_argument("--kappa", type=float, default=0.1)
-    parser.add_argument("--comp-tol", type=float, default=1e-7)
-    parser.add_argument("--mu-strategy", choices=("adaptive", "monotone"), default="adaptive")
-    parser.add_argument("--max-iter", type=int, default=2000)
+    parser.add_argument("--sigma0", type=float, default=plan.homotopy.sigma_0)
+    parser.add_argument("--kappa", type=float, default=plan.homotopy.kappa)
+    parser.add_argument("--comp-tol", type=float, default=plan.homotopy.tolerance)
+    parser.add_argument("--max-nlps", type=int, default=plan.homotopy.max_nlps)
+    parser.add_argument("--mu-strategy", choices=("adaptive", "monotone"),
+                        default=plan.nlp.options["mu_strategy"])
+    parser.add_argument("--max-iter", type=int, default=plan.nlp.max_iter)
     parser.add_argument("--hole-form", choices=("ellipse", "bump"), default="bump",
                         help="hole constraint (see MonopedTask.hole_form)")
     parser.add_argument("--s-max", type=float, default=5.0,
@@ -230,7 +236,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="clock constraint at every interval or only at T "
                              "(authors' robot_ocp.m: only at T)")
     parser.add_argument("--hole-half-width", type=float, default=None)
-    parser.add_argument("--verify-refinement", type=int, default=2)
+    parser.add_argument("--verify-refinement", type=int, default=plan.verify_refinement)
     parser.add_argument("--gap-scale", type=float, default=1.0,
                         help="K [1/s] of the gap's switching function K f_c")
     parser.add_argument("--out", type=Path, default=ROOT / "out" / "monoped")
