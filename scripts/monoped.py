@@ -245,8 +245,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--profile", type=int, default=0, metavar="ITERATIONS",
                         help="only time this many IPOPT iterations of the first NLP")
     args = parser.parse_args(argv)
-    args.extra_cmd = [a for a in (argv if argv is not None else sys.argv[1:])
-                      if a != "--bench"]
+    given = list(argv if argv is not None else sys.argv[1:])
+    if "--out" in given:  # where the plan goes is not part of the benchmark's command
+        del given[given.index("--out"):given.index("--out") + 2]
+    args.extra_cmd = [a for a in given if a != "--bench" and not a.startswith("--out=")]
     task = REDUCED_TASK if args.quick else MonopedTask()
     if args.n_intervals is not None:
         task = dataclasses.replace(task, n_intervals=args.n_intervals)
