@@ -126,7 +126,7 @@ def monoped_options(name: str = "full"):
     from tfcontact.mpcc import Homotopy, Ipopt, Scholtes
     from tfcontact.ocp.contact import ContactSolverOptions
 
-    monoped_task(name)
+    monoped_task(name)  # an unknown name raises here
     return ContactSolverOptions(
         scheme=RadauIIA(3 if name == "full" else 2), n_finite_elements=3,
         relaxation=Scholtes(),
