@@ -26,7 +26,7 @@ from tfcontact.viz import (
     replay,
     save_trajectory,
 )
-from tfcontact.viz.meshcat_replay import RecordingWindow, simplify_mesh
+from tfcontact.viz.meshcat_replay import HOLE_WIDTH, RecordingWindow, hole_meshes, simplify_mesh
 from tfcontact.viz.trajectory import sidecar_path
 
 #: Stated bounds on the standalone page of the hopper: plain, measured 0.89 MB (meshcat's
@@ -335,6 +335,50 @@ def test_animation_follows_the_robot_and_contact_state(tmp_path):
     np.testing.assert_allclose(lengths[stance], 0.3)
     np.testing.assert_array_equal([k["value"] for k in tracks[".visible"]["keys"]],
                                   lengths > 1e-4)
+
+
+def _closed(faces: np.ndarray) -> bool:
+    """Every edge of a triangle mesh is shared by exactly two faces."""
+    edges: dict[tuple[int, int], int] = {}
+    for face in faces:
+        for a, b in ((face[0], face[1]), (face[1], face[2]), (face[2], face[0])):
+            key = (min(a, b), max(a, b))
+            edges[key] = edges.get(key, 0) + 1
+    return set(edges.values()) == {2}
+
+
+def test_hole_meshes_follow_the_hole_constraints():
+    """Each hole is its profile in the x-z plane, extruded across y into a closed mesh:
+    the ellipse's boundary ((x - x_c)/a)^2 + (z/b)^2 = 1, the bump's top z = b (1 - s^2)."""
+    scene = {"holes": [{"x_c": 1.5, "half_width": 0.25, "depth": 0.1},
+                       {"x_c": 0.5, "half_width": 0.5, "depth": 0.1, "form": "bump"}]}
+    (ellipse, e_faces), (bump, b_faces) = hole_meshes(scene, n_points=24)
+    x, y, z = ellipse.T
+    np.testing.assert_allclose(((x - 1.5) / 0.25) ** 2 + (z / 0.1) ** 2, 1.0)
+    assert set(np.round(y, 12)) == {-HOLE_WIDTH / 2, HOLE_WIDTH / 2}
+    x, _, z = bump.T
+    top = z > -0.1 + 1e-12
+    np.testing.assert_allclose(z[top], 0.1 * (1 - ((x[top] - 0.5) / 0.5) ** 2), atol=1e-15)
+    assert z.max() == pytest.approx(0.1) and x.min() == 0.0 and x.max() == 1.0
+    for vertices, faces in ((ellipse, e_faces), (bump, b_faces)):
+        assert faces.min() == 0 and faces.max() == len(vertices) - 1
+        assert _closed(faces)
+    assert hole_meshes({"terrain": {"type": "flat"}}) == []
+    with pytest.raises(InvalidInput, match="form must be 'ellipse' or 'bump', got 'box'"):
+        hole_meshes({"holes": [{"x_c": 0, "half_width": 1, "depth": 1, "form": "box"}]})
+    with pytest.raises(InvalidInput, match="a hole needs numbers x_c, half_width and depth"):
+        hole_meshes({"holes": [{"x_c": 0, "depth": 1}]})
+
+
+def test_replay_draws_the_scene_holes(tmp_path):
+    traj = hop_trajectory()
+    traj.scene["holes"] = [{"x_c": 0.5, "half_width": 0.25, "depth": 0.1}]
+    result = replay(traj, robot=hopper_models(), html=tmp_path / "h.html")
+    commands = [umsgpack.unpackb(c) for c in result.scene.commands()]
+    holes = [c for c in commands if c["type"] == "set_object" and "/holes/" in c["path"]]
+    assert [c["path"] for c in holes] == ["/meshcat/tfcontact/holes/0"]
+    (geometry,) = holes[0]["object"]["geometries"]
+    assert geometry["type"] == "BufferGeometry"
 
 
 def test_recording_window_gives_meshcat_static_html():

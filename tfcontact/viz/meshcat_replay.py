@@ -38,6 +38,8 @@ CONTACT_ON_COLOR = 0x2CA02C  # green: gap <= contact_tol
 CONTACT_OFF_COLOR = 0xB0B0B0  # grey: free
 FORCE_COLOR = 0xD62728
 GROUND_COLOR = 0x8C8C8C
+HOLE_COLOR = 0xC44E52  # translucent red: where a foot's centre may not go
+HOLE_WIDTH = 0.3  # [m] a hole's extent across the plane of motion (y), for drawing only
 
 
 # ------------------------------------------------------------------- meshcat windows
@@ -415,6 +417,47 @@ def _ground_boxes(scene: dict, center_xy: np.ndarray, size: float) -> list[tuple
     return boxes
 
 
+def hole_meshes(scene: dict, n_points: int = 32) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Triangle meshes (vertices (k, 3), faces (m, 3)) drawing the scene's holes.
+
+    Reads the optional `scene['holes']`: [{"x_c": x_c, "half_width": a, "depth": b,
+    "form": "ellipse" | "bump"}, ...], regions of the x-z plane that a foot's centre must
+    stay out of (as `tfcontact.scenes.monoped` states them): "ellipse" (the default)
+    ((x - x_c) / a)^2 + (z / b)^2 < 1; "bump" |x - x_c| < a and z < b (1 - ((x - x_c) / a)^2),
+    drawn down to z = -b. Each convex profile is extruded across y in +-HOLE_WIDTH / 2.
+
+    Raises:
+        InvalidInput: a hole without x_c, half_width and depth, or with an unknown form.
+    """
+    meshes = []
+    for hole in scene.get("holes", []):
+        try:
+            x_c, a, b = (float(hole[k]) for k in ("x_c", "half_width", "depth"))
+        except (KeyError, TypeError, ValueError) as err:
+            raise InvalidInput(
+                f"a hole needs numbers x_c, half_width and depth, got {hole!r}") from err
+        form = hole.get("form", "ellipse")
+        if form == "ellipse":
+            angle = np.linspace(0.0, 2 * np.pi, n_points, endpoint=False)
+            profile = np.column_stack([x_c + a * np.cos(angle), b * np.sin(angle)])
+        elif form == "bump":
+            s = np.linspace(1.0, -1.0, n_points - 2 - (n_points % 2 == 0))  # odd: the apex
+            profile = np.vstack([np.column_stack([x_c + a * s, b * (1 - s**2)]),
+                                 [[x_c - a, -b], [x_c + a, -b]]])
+        else:
+            raise InvalidInput(f"a hole's form must be 'ellipse' or 'bump', got {form!r}")
+        k = len(profile)
+        vertices = np.vstack([np.column_stack([profile[:, 0], np.full(k, y), profile[:, 1]])
+                              for y in (-HOLE_WIDTH / 2, HOLE_WIDTH / 2)])
+        nxt = (np.arange(k) + 1) % k
+        sides = ([(i, nxt[i], k + nxt[i]) for i in range(k)]
+                 + [(i, k + nxt[i], k + i) for i in range(k)])
+        caps = ([(0, i, i + 1) for i in range(1, k - 1)]  # fans: the profiles are convex
+                + [(k, k + i + 1, k + i) for i in range(1, k - 1)])
+        meshes.append((vertices, np.array(sides + caps, dtype=np.int64)))
+    return meshes
+
+
 def _interp_index(t: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Left index i and weight w in [0, 1] of each time in `times` on the grid `t`.
 
@@ -558,6 +601,10 @@ def replay(
         node = root[f"ground/{k}"]
         node.set_object(mg.Box(lengths), mg.MeshLambertMaterial(color=GROUND_COLOR))
         node.set_transform(_translation(c))
+    for k, (vertices, faces) in enumerate(hole_meshes(traj.scene)):
+        root[f"holes/{k}"].set_object(
+            mg.TriangularMeshGeometry(vertices, faces),
+            mg.MeshLambertMaterial(color=HOLE_COLOR, opacity=0.45, transparent=True))
     vis["/Grid"].set_property("visible", False)
     vis["/Axes"].set_property("visible", False)
     # meshcat's orbit controls look at the origin: move the scene so the motion is centred
