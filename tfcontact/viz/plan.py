@@ -144,7 +144,7 @@ def trajectory_from_result(
         result: a `ContactResult` from `tfcontact.ocp.contact.solve_contact`.
         robot_spec: the `tfcontact.robot.RobotSpec` (or its `to_dict()`) that rebuilds the
             robot whose configuration is the plan's q (q in the robot's own coordinates).
-        scene: the scene dict (terrain, boxes); default flat ground at height 0.
+        scene: the scene dict (terrain, boxes, holes); default flat ground at height 0.
 
     Other args:
         directions: per CLS contact, (n_w (3,), T_w (3, n_t)): world normal and tangents

@@ -34,7 +34,7 @@ File layout (format version 1), `NAME.npz` + `NAME.json`:
   `dimensions` (N, nq, nv, nu, nc), `npz_sha256` (ties the pair together), `arrays`
   (units and meaning), `robot` (`source`: URDF path relative to the repository or an
   example-robot-data name; `base`; `locked_joints`; `contacts`: frame names and radii),
-  `scene` (terrain), `solver` (settings, timings, NLP count, iterations,
+  `scene` (terrain, optional boxes and holes), `solver` (settings, timings, NLP count, iterations,
   complementarity residual, optional `history`: one entry per homotopy step) and
   `verification` (independent checks of the plan).
 
