@@ -368,6 +368,8 @@ def test_hole_meshes_follow_the_hole_constraints():
         hole_meshes({"holes": [{"x_c": 0, "half_width": 1, "depth": 1, "form": "box"}]})
     with pytest.raises(InvalidInput, match="a hole needs numbers x_c, half_width and depth"):
         hole_meshes({"holes": [{"x_c": 0, "depth": 1}]})
+    with pytest.raises(InvalidInput, match="positive finite half_width and depth"):
+        hole_meshes({"holes": [{"x_c": 0, "half_width": -0.5, "depth": 0.1}]})
 
 
 def test_replay_draws_the_scene_holes(tmp_path):

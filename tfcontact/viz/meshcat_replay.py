@@ -427,7 +427,8 @@ def hole_meshes(scene: dict, n_points: int = 32) -> list[tuple[np.ndarray, np.nd
     drawn down to z = -b. Each convex profile is extruded across y in +-HOLE_WIDTH / 2.
 
     Raises:
-        InvalidInput: a hole without x_c, half_width and depth, or with an unknown form.
+        InvalidInput: a hole without x_c, half_width and depth (finite; the two sizes
+            positive), or with an unknown form.
     """
     meshes = []
     for hole in scene.get("holes", []):
@@ -436,6 +437,9 @@ def hole_meshes(scene: dict, n_points: int = 32) -> list[tuple[np.ndarray, np.nd
         except (KeyError, TypeError, ValueError) as err:
             raise InvalidInput(
                 f"a hole needs numbers x_c, half_width and depth, got {hole!r}") from err
+        if not (np.isfinite(x_c) and a > 0 and b > 0 and np.isfinite(a) and np.isfinite(b)):
+            raise InvalidInput(f"a hole needs a finite x_c and positive finite half_width and "
+                               f"depth [m], got {hole!r}")
         form = hole.get("form", "ellipse")
         if form == "ellipse":
             angle = np.linspace(0.0, 2 * np.pi, n_points, endpoint=False)
