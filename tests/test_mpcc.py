@@ -39,6 +39,11 @@ def test_each_relaxation_reaches_the_mpcc_solution(relaxation):
     np.testing.assert_allclose(result.objective, 0.8**2, atol=1e-6)
     assert 1 <= result.n_nlps <= Homotopy().n_max
     assert len(result.history) == result.n_nlps
+    # each NLP's time splits into function evaluations and IPOPT's own work
+    for step in result.history:
+        assert 0.0 < step.evaluation_seconds < step.seconds
+    assert result.evaluation_time == pytest.approx(
+        sum(s.evaluation_seconds for s in result.history))
 
 
 def test_scholtes_needs_sigma_below_tolerance():

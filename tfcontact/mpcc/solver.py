@@ -119,7 +119,9 @@ class MpccStatus(enum.Enum):
 
 @dataclass(frozen=True)
 class HomotopyStep:
-    """One NLP of the homotopy."""
+    """One NLP of the homotopy. `evaluation_seconds`: the part of `seconds` spent in
+    CasADi's function evaluations (objective, constraints, their derivatives); the rest
+    is IPOPT's own work, mostly the KKT factorisations."""
 
     sigma: float
     iterations: int
@@ -127,6 +129,7 @@ class HomotopyStep:
     residual: float
     seconds: float
     ipopt_status: str
+    evaluation_seconds: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,6 +182,11 @@ class MpccResult:
     @property
     def solve_time(self) -> float:
         return sum(self.nlp_times)
+
+    @property
+    def evaluation_time(self) -> float:
+        """Seconds of the NLP solves spent in function evaluations (`HomotopyStep`)."""
+        return sum(s.evaluation_seconds for s in self.history)
 
     def value(self, block: str) -> np.ndarray:
         """The solution's entries of a named block of variables."""
@@ -297,8 +305,10 @@ class MpccSolver:
                 x = x_new
                 lam_g = np.asarray(sol["lam_g"]).reshape(-1)
             residual, violation, objective = self.diagnostics(x[: self._n_w], p)
+            evaluations = sum(float(v) for key, v in stats.items()
+                              if key.startswith("t_wall_nlp_"))
             history.append(HomotopyStep(sigma, iterations, objective, residual, seconds,
-                                        ipopt_status))
+                                        ipopt_status, evaluations))
             if verbose:
                 print(f"  {k + 1:>3} {sigma:9.2e} {iterations:5d} {objective:12.5e} "
                       f"{residual:9.2e} {seconds:8.3f}  {ipopt_status}", flush=True)
