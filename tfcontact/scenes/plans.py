@@ -32,11 +32,10 @@ class PlanReport:
 
 @dataclass(frozen=True)
 class PlanSetup:
-    """What a plan needs to run: the robot, ground, problem, solver options and the scene
-    stored in the trajectory's sidecar."""
+    """What a plan needs to run: the robot, problem, solver options and the scene stored
+    in the trajectory's sidecar (its ground and obstacles)."""
 
     robot: Any
-    ground: Any
     problem: Any
     options: Any
     scene: dict
@@ -61,15 +60,14 @@ def _hopper(task: str | None) -> PlanSetup:
     from tfcontact.scenes.hopper import hopper_options, hopper_problem
 
     robot, ground, problem = hopper_problem(task or "short")
-    return PlanSetup(robot, ground, problem, hopper_options(task or "short"), _flat(ground))
+    return PlanSetup(robot, problem, hopper_options(task or "short"), _flat(ground))
 
 
 def _monoped(task: str | None) -> PlanSetup:
     from tfcontact.scenes.monoped import monoped_options, monoped_problem
 
     mp = monoped_problem(task or "full")
-    return PlanSetup(mp.robot, mp.ground, mp.problem, monoped_options(task or "full"),
-                     mp.scene())
+    return PlanSetup(mp.robot, mp.problem, monoped_options(task or "full"), mp.scene())
 
 
 PLANS: dict[str, Plan] = {
