@@ -37,11 +37,11 @@ from tfcontact.ocp.contact import ContactResult, ContactSolverOptions, solve_con
 from tfcontact.robot import RobotSpec
 from tfcontact.scenes.monoped import (
     FOOT_RADIUS,
-    REDUCED_TASK,
+    FULL_TASK,
     MonopedProblem,
-    MonopedTask,
     monoped_options,
     monoped_problem,
+    monoped_task,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -228,16 +228,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--mu-strategy", choices=("adaptive", "monotone"),
                         default=plan.nlp.options["mu_strategy"])
     parser.add_argument("--max-iter", type=int, default=plan.nlp.max_iter)
-    parser.add_argument("--hole-form", choices=("ellipse", "bump"), default="bump",
+    parser.add_argument("--hole-form", choices=("ellipse", "bump"), default=FULL_TASK.hole_form,
                         help="hole constraint (see MonopedTask.hole_form)")
-    parser.add_argument("--s-max", type=float, default=5.0,
+    parser.add_argument("--s-max", type=float, default=FULL_TASK.speed_of_time[1],
                         help="speed of time in [1, s_max] (authors' robot_ocp.m: 5)")
-    parser.add_argument("--clock", choices=("stagewise", "end"), default="end",
+    parser.add_argument("--clock", choices=("stagewise", "end"),
+                        default="stagewise" if FULL_TASK.stagewise_clock else "end",
                         help="clock constraint at every interval or only at T "
                              "(authors' robot_ocp.m: only at T)")
     parser.add_argument("--hole-half-width", type=float, default=None)
     parser.add_argument("--verify-refinement", type=int, default=plan.verify_refinement)
-    parser.add_argument("--gap-scale", type=float, default=1.0,
+    parser.add_argument("--gap-scale", type=float, default=FULL_TASK.gap_scale,
                         help="K [1/s] of the gap's switching function K f_c")
     parser.add_argument("--out", type=Path, default=ROOT / "out" / "monoped")
     parser.add_argument("--bench", action="store_true",
@@ -249,7 +250,8 @@ def main(argv: list[str] | None = None) -> int:
     if "--out" in given:  # where the plan goes is not part of the benchmark's command
         del given[given.index("--out"):given.index("--out") + 2]
     args.extra_cmd = [a for a in given if a != "--bench" and not a.startswith("--out=")]
-    task = REDUCED_TASK if args.quick else MonopedTask()
+    name = "reduced" if args.quick else "full"
+    task = monoped_task(name)
     if args.n_intervals is not None:
         task = dataclasses.replace(task, n_intervals=args.n_intervals)
     task = dataclasses.replace(task, hole_form=args.hole_form, speed_of_time=(1.0, args.s_max),
@@ -258,7 +260,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.hole_half_width is not None:
         task = dataclasses.replace(task, hole_half_width=args.hole_half_width)
     if args.stages is None:
-        args.stages = 2 if args.quick else 3
+        args.stages = monoped_options(name).scheme.stages
     mp = monoped_problem(task)
     options = solver_options(args)
     if args.profile:

@@ -7,6 +7,9 @@ a hop over the hole by itself.
 
 from __future__ import annotations
 
+import importlib.util
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -42,6 +45,33 @@ def test_hole_values_sign():
     stand = lambda x: np.array([[x, 0.4, 0.0, 0.0]])  # noqa: E731
     assert mp.hole_values(stand(0.5))[0, 0] == pytest.approx(-1.0)
     assert mp.hole_values(stand(1.2))[0, 0] > 0
+
+
+def test_script_defaults_are_the_cli_plan(monkeypatch):
+    """`scripts/monoped.py` without flags (and with `--quick`) solves the same task with the
+    same settings as `tfcontact plan monoped` (`--task reduced`): one source of both."""
+    path = Path(__file__).resolve().parents[1] / "scripts" / "monoped.py"
+    spec = importlib.util.spec_from_file_location("monoped_script", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    seen = {}
+
+    def stop(problem, options, verbose):  # capture instead of solving
+        seen.update(problem=problem, options=options)
+        raise SystemExit
+
+    monkeypatch.setattr(script, "solve_contact", stop)
+    for argv, name in (([], "full"), (["--quick"], "reduced")):
+        with pytest.raises(SystemExit):
+            script.main(argv)
+        assert seen["options"] == monoped_options(name)
+        plan = monoped_problem(name).problem
+        assert seen["problem"].n_intervals == plan.n_intervals
+        assert seen["problem"].horizon == plan.horizon
+        assert seen["problem"].speed_of_time == plan.speed_of_time
+        assert seen["problem"].stagewise_clock == plan.stagewise_clock
+        # the path constraints hold the holes (form, width, depth, centres)
+        assert str(seen["problem"].path.expression) == str(plan.path.expression)
 
 
 def test_bad_task():

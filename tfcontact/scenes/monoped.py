@@ -177,7 +177,7 @@ class MonopedProblem:
                          for c in self.task.holes], axis=1).reshape(len(p), -1)
 
 
-def monoped_problem(task: MonopedTask | str | None = None) -> MonopedProblem:
+def monoped_problem(task: MonopedTask | str = "full") -> MonopedProblem:
     """Build TF-9's OCP for the project's monoped URDF.
 
     State bounds ([AUTO23] section 6): q_x >= -0.05, 0.2 <= q_z <= 0.55,
@@ -187,7 +187,6 @@ def monoped_problem(task: MonopedTask | str | None = None) -> MonopedProblem:
     `MonopedTask` or a name of `monoped_task`.
     """
     task = monoped_task(task) if isinstance(task, str) else task
-    task = task if task is not None else MonopedTask()
     robot = load_robot("monoped", base="planar_xz",
                        contacts=(ContactSpec("foot", FOOT_RADIUS),))
     ground = Ground(height=-FOOT_RADIUS)
