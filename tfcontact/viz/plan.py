@@ -64,8 +64,9 @@ def solver_record(result: Any) -> dict[str, Any]:
     iterations_per_nlp, complementarity_residual, timings [s] (build, solve, verify,
     total, summed over attempts), settings (discretisation, relaxation, homotopy, IPOPT,
     attempts, horizons, N, speed of time bounds), history (one dict per homotopy step:
-    sigma, iterations, objective, residual, seconds, ipopt_status) and attempts (one dict
-    per solve: seed, status, iterations, solve_time, verify_time, end_state_deviation).
+    sigma, iterations, objective, residual, seconds, ipopt_status, evaluation_seconds) and
+    attempts (one dict per solve: seed, status, iterations, solve_time, verify_time,
+    end_state_deviation).
     """
     ocp = result.ocp
     build = ocp.build
