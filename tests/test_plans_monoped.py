@@ -19,6 +19,7 @@ from tfcontact.scenes.monoped import (
     FOOT_RADIUS,
     REDUCED_TASK,
     MonopedTask,
+    hole_profile,
     monoped_options,
     monoped_problem,
 )
@@ -72,6 +73,24 @@ def test_script_defaults_are_the_cli_plan(monkeypatch):
         assert seen["problem"].stagewise_clock == plan.stagewise_clock
         # the path constraints hold the holes (form, width, depth, centres)
         assert str(seen["problem"].path.expression) == str(plan.path.expression)
+
+
+def test_hole_profiles_follow_the_hole_constraints():
+    """The replay's hole profiles (sidecar scene) lie on the constraints' boundaries: the
+    ellipse ((x - x_c)/a)^2 + (z/b)^2 = 1, the bump's parabola z = b (1 - ((x - x_c)/a)^2)
+    through its apex, closed at z = -b."""
+    ellipse = hole_profile(MonopedTask(hole_half_width=0.25), 1.5, n_points=24)
+    np.testing.assert_allclose(((ellipse[:, 0] - 1.5) / 0.25) ** 2
+                               + (ellipse[:, 1] / 0.1) ** 2, 1.0)
+    bump = hole_profile(MonopedTask(hole_form="bump"), 0.5, n_points=24)
+    top, bottom = bump[:-2], bump[-2:]
+    np.testing.assert_allclose(top[:, 1], 0.1 * (1 - ((top[:, 0] - 0.5) / 0.5) ** 2),
+                               atol=1e-15)
+    assert top[:, 1].max() == pytest.approx(0.1)  # the apex is a vertex
+    np.testing.assert_array_equal(bottom, [[0.0, -0.1], [1.0, -0.1]])
+    scene = monoped_problem(REDUCED_TASK).scene()
+    np.testing.assert_array_equal(scene["holes"][0]["profile"],
+                                  hole_profile(REDUCED_TASK, 0.5))
 
 
 def test_bad_task():

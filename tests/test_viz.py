@@ -347,34 +347,34 @@ def _closed(faces: np.ndarray) -> bool:
     return set(edges.values()) == {2}
 
 
-def test_hole_meshes_follow_the_hole_constraints():
-    """Each hole is its profile in the x-z plane, extruded across y into a closed mesh:
-    the ellipse's boundary ((x - x_c)/a)^2 + (z/b)^2 = 1, the bump's top z = b (1 - s^2)."""
-    scene = {"holes": [{"x_c": 1.5, "half_width": 0.25, "depth": 0.1},
-                       {"x_c": 0.5, "half_width": 0.5, "depth": 0.1, "form": "bump"}]}
-    (ellipse, e_faces), (bump, b_faces) = hole_meshes(scene, n_points=24)
-    x, y, z = ellipse.T
-    np.testing.assert_allclose(((x - 1.5) / 0.25) ** 2 + (z / 0.1) ** 2, 1.0)
-    assert set(np.round(y, 12)) == {-HOLE_WIDTH / 2, HOLE_WIDTH / 2}
-    x, _, z = bump.T
-    top = z > -0.1 + 1e-12
-    np.testing.assert_allclose(z[top], 0.1 * (1 - ((x[top] - 0.5) / 0.5) ** 2), atol=1e-15)
-    assert z.max() == pytest.approx(0.1) and x.min() == 0.0 and x.max() == 1.0
-    for vertices, faces in ((ellipse, e_faces), (bump, b_faces)):
-        assert faces.min() == 0 and faces.max() == len(vertices) - 1
+def test_hole_meshes_extrude_the_scene_profiles():
+    """Each hole's profile (a convex polygon in the x-z plane) is extruded across y into a
+    closed mesh whose two caps are the profile itself."""
+    square = [[0.0, -0.1], [1.0, -0.1], [1.0, 0.1], [0.0, 0.1]]
+    hexagon = [[2 + np.cos(a), 0.1 * np.sin(a)] for a in np.linspace(0, 2 * np.pi, 6,
+                                                                   endpoint=False)]
+    meshes = hole_meshes({"holes": [{"profile": square}, {"profile": hexagon, "x_c": 2}]})
+    for (vertices, faces), profile in zip(meshes, (square, hexagon), strict=True):
+        k = len(profile)
+        assert vertices.shape == (2 * k, 3) and faces.shape == (2 * k + 2 * (k - 2), 3)
+        for cap, y in ((vertices[:k], -HOLE_WIDTH / 2), (vertices[k:], HOLE_WIDTH / 2)):
+            np.testing.assert_array_equal(cap[:, [0, 2]], profile)
+            np.testing.assert_array_equal(cap[:, 1], y)
+        assert faces.min() == 0 and faces.max() == 2 * k - 1
         assert _closed(faces)
     assert hole_meshes({"terrain": {"type": "flat"}}) == []
-    with pytest.raises(InvalidInput, match="form must be 'ellipse' or 'bump', got 'box'"):
-        hole_meshes({"holes": [{"x_c": 0, "half_width": 1, "depth": 1, "form": "box"}]})
-    with pytest.raises(InvalidInput, match="a hole needs numbers x_c, half_width and depth"):
-        hole_meshes({"holes": [{"x_c": 0, "depth": 1}]})
-    with pytest.raises(InvalidInput, match="positive finite half_width and depth"):
-        hole_meshes({"holes": [{"x_c": 0, "half_width": -0.5, "depth": 0.1}]})
+    assert hole_meshes({"holes": [{"x_c": 0.5}]}) == []  # an older sidecar: not drawn
+    with pytest.raises(InvalidInput, match="a hole needs a `profile` of"):
+        hole_meshes({"holes": [{"profile": [[0, "a"], [1, 0], [1, 1]]}]})
+    with pytest.raises(InvalidInput, match="3 or more finite"):
+        hole_meshes({"holes": [{"profile": [[0, 0], [1, 0]]}]})
+    with pytest.raises(InvalidInput, match="3 or more finite"):
+        hole_meshes({"holes": [{"profile": [[0, 0], [1, 0], [1, float("nan")]]}]})
 
 
 def test_replay_draws_the_scene_holes(tmp_path):
     traj = hop_trajectory()
-    traj.scene["holes"] = [{"x_c": 0.5, "half_width": 0.25, "depth": 0.1}]
+    traj.scene["holes"] = [{"profile": [[0.3, -0.1], [0.7, -0.1], [0.5, 0.1]]}]
     result = replay(traj, robot=hopper_models(), html=tmp_path / "h.html")
     commands = [umsgpack.unpackb(c) for c in result.scene.commands()]
     holes = [c for c in commands if c["type"] == "set_object" and "/holes/" in c["path"]]

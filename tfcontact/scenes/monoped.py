@@ -84,6 +84,24 @@ class MonopedTask:
                 raise InvalidInput(f"`{name}` must be positive, got {getattr(self, name)!r}")
 
 
+def hole_profile(task: MonopedTask, x_c: float, n_points: int = 32) -> np.ndarray:
+    """The region of the x-z plane that the foot's centre must stay out of, around the
+    hole at x_c, as a convex polygon (n, 2) of (x, z) [m] in counterclockwise order.
+
+    "ellipse": points on ((x - x_c)/a)^2 + (z/b)^2 = 1. "bump": the parabola
+    z = b (1 - ((x - x_c)/a)^2) over |x - x_c| <= a (apex included), closed at z = -b:
+    the constraint leaves everything below the parabola forbidden, the depth b is for
+    drawing only.
+    """
+    a, b = task.hole_half_width, task.hole_depth
+    if task.hole_form == "ellipse":
+        angle = np.linspace(0.0, 2 * np.pi, n_points, endpoint=False)
+        return np.column_stack([x_c + a * np.cos(angle), b * np.sin(angle)])
+    s = np.linspace(1.0, -1.0, n_points - 2 - (n_points % 2 == 0))  # odd: the apex
+    return np.vstack([np.column_stack([x_c + a * s, b * (1 - s**2)]),
+                      [[x_c - a, -b], [x_c + a, -b]]])
+
+
 REDUCED_TASK = MonopedTask(horizon=1.0, n_intervals=10, q_goal=(1.0, 0.4, 0.0, 0.0),
                            holes=(0.5,), hole_half_width=0.25, hole_form="bump",
                            speed_of_time=(1.0, 5.0), stagewise_clock=False)
@@ -157,13 +175,15 @@ class MonopedProblem:
     foot: ca.Function
 
     def scene(self) -> dict:
-        """The scene of the plan's trajectory sidecar: the lowered ground and the holes."""
+        """The scene of the plan's trajectory sidecar: the lowered ground and the holes,
+        each with its `hole_profile` (what the replay draws)."""
         task = self.task
         return {
             "terrain": {"type": "flat", "height": float(self.ground.height),
                         "normal": [float(c) for c in self.ground.normal]},
             "holes": [{"x_c": c, "half_width": task.hole_half_width, "depth": task.hole_depth,
-                       "form": task.hole_form} for c in task.holes],
+                       "form": task.hole_form, "profile": hole_profile(task, c).tolist()}
+                      for c in task.holes],
             "note": "the foot sphere (radius 0.028 m) rests on the ground lowered by its "
                     "radius: the gap is TF-9's point-foot gap p_foot,z",
         }

@@ -417,39 +417,32 @@ def _ground_boxes(scene: dict, center_xy: np.ndarray, size: float) -> list[tuple
     return boxes
 
 
-def hole_meshes(scene: dict, n_points: int = 32) -> list[tuple[np.ndarray, np.ndarray]]:
+def hole_meshes(scene: dict) -> list[tuple[np.ndarray, np.ndarray]]:
     """Triangle meshes (vertices (k, 3), faces (m, 3)) drawing the scene's holes.
 
-    Reads the optional `scene['holes']`: [{"x_c": x_c, "half_width": a, "depth": b,
-    "form": "ellipse" | "bump"}, ...], regions of the x-z plane that a foot's centre must
-    stay out of (as `tfcontact.scenes.monoped` states them): "ellipse" (the default)
-    ((x - x_c) / a)^2 + (z / b)^2 < 1; "bump" |x - x_c| < a and z < b (1 - ((x - x_c) / a)^2),
-    drawn down to z = -b. Each convex profile is extruded across y in +-HOLE_WIDTH / 2.
+    Reads the optional `scene['holes']`: [{"profile": [[x, z], ...], ...}, ...], each a
+    convex polygon in the x-z plane (world coordinates, at least 3 points in order) that
+    a foot's centre must stay out of, as the scene that wrote it states it (e.g.
+    `tfcontact.scenes.monoped.hole_profile`); each is extruded across y in
+    +-HOLE_WIDTH / 2. A hole without a profile (sidecars written before profiles were
+    stored) is not drawn.
 
     Raises:
-        InvalidInput: a hole without x_c, half_width and depth (finite; the two sizes
-            positive), or with an unknown form.
+        InvalidInput: a profile that is not at least 3 finite (x, z) points.
     """
     meshes = []
     for hole in scene.get("holes", []):
+        if not isinstance(hole, dict) or "profile" not in hole:
+            continue
         try:
-            x_c, a, b = (float(hole[k]) for k in ("x_c", "half_width", "depth"))
-        except (KeyError, TypeError, ValueError) as err:
+            profile = np.asarray(hole["profile"], dtype=float)
+        except (TypeError, ValueError) as err:
             raise InvalidInput(
-                f"a hole needs numbers x_c, half_width and depth, got {hole!r}") from err
-        if not (np.isfinite(x_c) and a > 0 and b > 0 and np.isfinite(a) and np.isfinite(b)):
-            raise InvalidInput(f"a hole needs a finite x_c and positive finite half_width and "
-                               f"depth [m], got {hole!r}")
-        form = hole.get("form", "ellipse")
-        if form == "ellipse":
-            angle = np.linspace(0.0, 2 * np.pi, n_points, endpoint=False)
-            profile = np.column_stack([x_c + a * np.cos(angle), b * np.sin(angle)])
-        elif form == "bump":
-            s = np.linspace(1.0, -1.0, n_points - 2 - (n_points % 2 == 0))  # odd: the apex
-            profile = np.vstack([np.column_stack([x_c + a * s, b * (1 - s**2)]),
-                                 [[x_c - a, -b], [x_c + a, -b]]])
-        else:
-            raise InvalidInput(f"a hole's form must be 'ellipse' or 'bump', got {form!r}")
+                f"a hole needs a `profile` of (x, z) points, got {hole!r}") from err
+        shaped = profile.ndim == 2 and profile.shape[0] >= 3 and profile.shape[1] == 2
+        if not (shaped and np.all(np.isfinite(profile))):
+            raise InvalidInput(f"a hole's `profile` must be 3 or more finite (x, z) points, "
+                               f"got shape {profile.shape}")
         k = len(profile)
         vertices = np.vstack([np.column_stack([profile[:, 0], np.full(k, y), profile[:, 1]])
                               for y in (-HOLE_WIDTH / 2, HOLE_WIDTH / 2)])
