@@ -150,3 +150,59 @@ def test_gap_scale_reaches_the_time_freezing_system():
     y[:4] = (0.0, 0.45, 0.3, -0.4)
     np.testing.assert_allclose(c_scaled(y).full()[0], 30.0 * c_plain(y).full()[0], rtol=1e-12)
     np.testing.assert_allclose(c_scaled(y).full()[1:], c_plain(y).full()[1:], atol=1e-15)
+
+
+@pytest.fixture(scope="module")
+def standing_plan():
+    """The monoped standing still on its straight leg for 1 s (no holes, goal = start):
+    zero torques and zero velocities are an exact equilibrium of TF-9's dynamics, and an
+    unstable one (the passive knee buckles)."""
+    from dataclasses import replace
+
+    task = MonopedTask(horizon=1.0, n_intervals=10, q_goal=(0.0, 0.4, 0.0, 0.0), holes=(),
+                       speed_of_time=(1.0, 5.0), stagewise_clock=False)
+    mp = monoped_problem(task)
+    options = monoped_options("reduced")
+    options = replace(options, homotopy=replace(options.homotopy, tolerance=1e-6, max_nlps=8))
+    return mp, options, solve_contact(mp.problem, options, verbose=False)
+
+
+def test_an_open_loop_unstable_plan_passes_on_its_local_defects(standing_plan):
+    """The standing plan is exact (measured: local defects sum to 6.5e-5), but its replay
+    with the exact-impact reference falls over (measured: it ends 17.5 away), as any
+    integration of an unstable equilibrium does. The replay's measured sensitivity (a
+    5e-5 m/s kick of the start velocities moves its end by 34) accounts for that: the plan
+    passes on its local defects, and the summary says so."""
+    _, options, result = standing_plan
+    v = result.verification
+    tol = options.end_state_tolerance
+    assert result.ocp.success, result.message
+    assert np.max(np.abs(result.u)) < 1e-6  # standing needs no torque
+    assert v.end_state_deviation > tol  # the open-loop replay falls over
+    defects = np.asarray(v.local_defects)
+    assert defects.shape == (10,) and np.all(np.isfinite(defects))
+    assert v.defect_sum == pytest.approx(defects.sum()) and v.defect_sum < 1e-3
+    assert v.open_loop_sensitivity / (1e-3 * tol) * v.defect_sum >= v.end_state_deviation
+    assert v.open_loop_unstable and v.passed and result.status == "converged"
+    assert "open-loop unstable, passed on the local defects" in v.summary()
+    assert any("amplify the plan's local errors" in note for note in v.notes)
+
+
+def test_an_unstable_plan_with_a_wrong_interval_fails(standing_plan):
+    """The same states with a 5 N m hip torque in interval 5: the states no longer follow
+    from the controls, so the local defects no longer add up to the tolerance, and the
+    open-loop instability cannot excuse the replay's deviation."""
+    from dataclasses import replace
+
+    from tfcontact.ocp.contact import verify_plan
+
+    mp, options, result = standing_plan
+    u = result.ocp.u.copy()
+    u[4, 0] = 5.0
+    tampered = replace(result.ocp, u=u)
+    v = verify_plan(mp.problem, result.system, tampered, result.physical, options)
+    defects = np.asarray(v.local_defects)
+    assert np.argmax(defects) == 4 and defects[4] > options.end_state_tolerance
+    assert np.delete(defects, 4).max() < 1e-3
+    assert not v.open_loop_unstable and np.isnan(v.open_loop_sensitivity)
+    assert not v.passed

@@ -18,7 +18,10 @@ class Verification:
     """The outcome of the independent checks of one plan.
 
     Attributes:
-        passed: every check below within its tolerance.
+        passed: every check below within its tolerance. The end state passes when the
+            open-loop replay ends within its tolerance, or, for a plan whose dynamics
+            amplify errors, when `defect_sum` is within it and `open_loop_sensitivity`
+            accounts for the replay's deviation (see `open_loop_sensitivity`).
         method: how the plan was re-simulated.
         end_state_deviation: ||x_plan(T) - x_resimulated(T)|| (inf norm) [state units].
         min_gap: the smallest contact gap over the plan [m]; penetration is negative.
@@ -33,10 +36,24 @@ class Verification:
             ||Lambda_t + mu Lambda_n d|| (d the unit slip direction), Coulomb's maximal
             dissipation (see `maximal_dissipation_violation`) [N s]; nan: not checked.
         local_defects: per control interval k, the deviation at its end of the exact
-            reference restarted at its start from the plan's own state (inf norm) [state
-            units]: where the plan itself is wrong, free of the open-loop growth of errors
-            that the end-state deviation also measures. A diagnostic, not a pass
-            criterion; nan where the reference could not start; empty: not computed.
+            reference restarted from the plan's own state at the interval's start (inf
+            norm) [state units]: where the plan itself is wrong, free of the open-loop
+            growth of errors that the end-state deviation also measures. A boundary
+            inside an impact holds no physical state: the restart there is skipped and
+            the interval's entry is nan, the next entry covers both intervals. inf: the
+            reference could not simulate the interval; empty: not computed.
+        defect_sum: the sum of the local defects (nan: none computed; inf: one could
+            not be simulated). Without amplification of errors by the dynamics, the
+            open-loop replay would end at most this far from the plan.
+        open_loop_sensitivity: measured only when the open-loop replay fails and
+            `defect_sum` is within the end-state tolerance: how far the replay's end
+            moves when every start velocity is kicked by 1e-3 x the tolerance (the larger
+            of + and -) [state units]; nan: not measured. The end state passes if this
+            amplification, applied to `defect_sum`, reaches the open-loop deviation: the
+            plan is locally right and open-loop unstable (a legged robot balancing on a
+            point foot, a hopper after several impacts).
+        open_loop_unstable: the end-state check passed that way (on `defect_sum`), not on
+            the open-loop replay.
     """
 
     passed: bool
@@ -50,6 +67,9 @@ class Verification:
     notes: tuple[str, ...] = ()
     dissipation_violation: float = float("nan")
     local_defects: tuple[float, ...] = ()
+    defect_sum: float = float("nan")
+    open_loop_sensitivity: float = float("nan")
+    open_loop_unstable: bool = False
 
     def to_dict(self) -> dict:
         out = asdict(self)
@@ -60,9 +80,12 @@ class Verification:
     def summary(self) -> str:
         tol = self.tolerances
         flag = "PASSED" if self.passed else "FAILED"
+        route = ("; open-loop unstable, passed on the local defects"
+                 if self.open_loop_unstable else "")
         return (
             f"verification {flag} ({self.method}): end-state deviation "
-            f"{self.end_state_deviation:.2e} (tol {tol.get('end_state', float('nan')):.0e}), "
+            f"{self.end_state_deviation:.2e} (tol {tol.get('end_state', float('nan')):.0e}"
+            f"{route}), "
             f"min gap {self.min_gap:+.2e} m (tol -{tol.get('gap', float('nan')):.0e}), "
             f"friction-cone violation {self.friction_cone_violation:.2e} N s, "
             f"maximal-dissipation violation {self.dissipation_violation:.2e} N s, "
@@ -75,7 +98,11 @@ class Verification:
         if not np.any(np.isfinite(defects)):
             return ""
         k = int(np.nanargmax(defects))
-        return f"; largest local defect {defects[k]:.2e} (interval {k + 1} of {defects.size})"
+        text = (f"; largest local defect {defects[k]:.2e} (interval {k + 1} of "
+                f"{defects.size}), sum {self.defect_sum:.2e}")
+        if np.isfinite(self.open_loop_sensitivity):
+            text += f"; open-loop sensitivity {self.open_loop_sensitivity:.2e}"
+        return text
 
 
 def contact_impulses(
