@@ -152,6 +152,58 @@ def test_inelastic_system_structure():
     np.testing.assert_array_equal(y0, [0, 1, 3, 0, 0])
 
 
+def test_inelastic_stewart_form_has_a_region_per_sign_pattern():
+    """One contact, planar friction: 2^3 regions, the auxiliary fields where the gap and the
+    normal velocity are both negative (split by the slip's sign), free flight elsewhere."""
+    tf = time_freeze(point_mass(2, mu=0.3, controlled=True), method=Inelastic(form="stewart"))
+    heaviside = time_freeze(point_mass(2, mu=0.3, controlled=True))
+    assert isinstance(tf.pss, StewartSystem) and tf.pss.n_regions == 8
+    assert dict(tf.info)["form"] == "stewart"
+    y = [0.1, 0.2, -0.3, 0.4, 0.0]
+    modes, reference = modes_at(tf, y, [1, 2]), modes_at(heaviside, y, [1, 2])
+    indicators = ca.Function("g", [tf.pss.x], [tf.pss.indicators])
+    switching = ca.Function("c", [tf.pss.x], [tf.pss.switching])
+    for k, name in enumerate(tf.region_names):
+        expected = 1 if name.startswith("aux_plus") else 2 if name.startswith("aux_minus") else 0
+        np.testing.assert_allclose(modes[:, k], reference[:, expected])
+    # Stewart's active region (the smallest indicator) at a state: free flight above the
+    # ground or when the foot leaves it, the auxiliary field of the slip's sign in contact
+    for y, region in (([0.0, 0.1, 1.0, -1.0, 0.0], "ode"),  # above the ground, falling
+                      ([0.0, -1e-3, 1.0, 1.0, 0.0], "ode"),  # below, but lifting off
+                      ([0.0, -1e-3, 1.0, -1.0, 0.0], "aux_plus"),
+                      ([0.0, -1e-3, -1.0, -1.0, 0.0], "aux_minus")):
+        active = int(np.argmin(np.asarray(indicators(y)).ravel()))
+        assert tf.region_names[active].startswith(region), (switching(y), tf.region_names)
+    with pytest.raises(IncompatibleOptions, match="one contact"):
+        time_freeze(point_mass(3, mu=0.3), method=Inelastic(form="stewart"))  # 3-D friction
+    with pytest.raises(InvalidInput, match="form"):
+        Inelastic(form="voronoi")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mu", [0.2, 0.5])
+def test_stewart_form_pushed_block_slips_or_sticks_as_coulomb_says(mu):
+    """The pushed block of the Heaviside test below, in the Stewart form: the Coulomb
+    impulse at the impact and the slip (mu = 0.2) or stick (mu = 0.5) after it."""
+    cls = _pushed_block(mu)
+    tf = time_freeze(cls, method=Inelastic(form="stewart"))
+    push = np.array([2.0, 0.0])
+    result, phys = sim(tf, tf.initial_state([0.0, 1.0], [1.0, 0.0]), horizon=1.5, n_steps=12,
+                       n_finite_elements=3, u=push)
+    t1 = drop_time(1.0)
+    vx_pre = 1.0 + 2.0 * t1
+    vx_post = max(vx_pre - mu * G * t1, 0.0)
+    (impact,) = phys.impacts
+    assert impact.time == pytest.approx(t1, abs=1e-8)
+    assert impact.post[2] == pytest.approx(vx_post, abs=2e-5)
+    t_end = result.x[-1, 4]
+    accel = 2.0 - mu * G
+    expected = vx_post + accel * (t_end - t1) if accel > 0 else max(
+        vx_post + accel * (t_end - t1), 0.0)
+    assert result.x[-1, 2] == pytest.approx(expected, abs=1e-6)
+    assert result.x[:, 1].min() > -PENETRATION_TOL
+
+
 # ----------------------------------------------------------------------------- sliding modes
 
 

@@ -34,17 +34,24 @@ The Heaviside product form (DESIGN.md 4.4) combines the contacts:
     theta_n,i = (1 - alpha_q,i)(1 - alpha_vn,i)          (mu_i = 0)
 
 so simultaneous impacts add their auxiliary fields while the clock is frozen.
+
+The Stewart form (`form="stewart"`, one contact, planar or no friction) gives each sign
+pattern of the switching functions its own region, as nosnoc_py's time-freezing examples
+do: the auxiliary fields where c_q < 0 and c_vn < 0 (split by the sign of c_vt), f_ODE in
+the others, with Stewart's convex multipliers theta in place of the step variables.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 import casadi as ca
+import numpy as np
 
 from tfcontact.errors import IncompatibleOptions, InvalidInput
-from tfcontact.fesd.system import HeavisideSystem
+from tfcontact.fesd.system import HeavisideSystem, StewartSystem
 from tfcontact.timefreezing.cls import ComplementarityLagrangianSystem
 from tfcontact.timefreezing.system import TimeFreezingSystem
 
@@ -76,10 +83,14 @@ class Inelastic:
             the auxiliary dynamics act while the foot is still above the ground; K of the
             order of 1/h (h a finite element's duration) measures the gap by the velocity
             that closes it within one element (benchmarks/hopper_bench.md).
+        form: "heaviside" (default: step variables, any number of contacts) or
+            "stewart" (one region per sign pattern of the switching functions, one
+            contact with planar or no friction).
     """
 
     normal_switching: str = "separate"
     gap_scale: float = 1.0
+    form: str = "heaviside"
 
     def __post_init__(self) -> None:
         if self.normal_switching not in ("separate", "max"):
@@ -88,6 +99,8 @@ class Inelastic:
             )
         if not (math.isfinite(self.gap_scale) and self.gap_scale > 0):
             raise InvalidInput(f"`gap_scale` must be a finite number > 0, got {self.gap_scale!r}")
+        if self.form not in ("heaviside", "stewart"):
+            raise InvalidInput(f"`form` must be 'heaviside' or 'stewart', got {self.form!r}")
 
     def build(self, cls: ComplementarityLagrangianSystem) -> TimeFreezingSystem:
         """The time-freezing PSS of `cls` (module docstring)."""
@@ -97,6 +110,8 @@ class Inelastic:
                 f"contacts {bad} have restitution > 0 but the `Inelastic` method was chosen: "
                 "use `Elastic()` (single frictionless contact) or set restitution = 0"
             )
+        if self.form == "stewart":
+            return self._build_stewart(cls)
         n = cls.n_q
         t = ca.SX.sym("t")
         y = ca.vertcat(cls.q, cls.v, t)
@@ -169,4 +184,56 @@ class Inelastic:
                   ("gap_scale", self.gap_scale),
                   ("a_n", tuple(c.a_n for c in cls.contacts)),
                   ("eps_t", tuple(c.eps_t for c in cls.contacts))),
+        )
+
+    def _build_stewart(self, cls: ComplementarityLagrangianSystem) -> TimeFreezingSystem:
+        """The Stewart form (module docstring): 2^n_c regions for n_c switching functions."""
+        if cls.n_contacts != 1 or cls.contacts[0].n_tangents > 1:
+            raise IncompatibleOptions(
+                "the Stewart form of `Inelastic` supports one contact with planar or no "
+                f"friction; `cls` has {cls.n_contacts} contacts: use form='heaviside'")
+        contact = cls.contacts[0]
+        n = cls.n_q
+        t = ca.SX.sym("t")
+        y = ca.vertcat(cls.q, cls.v, t)
+        zeros_q = ca.SX.zeros(n, 1)
+        f_ode = ca.vertcat(cls.v, cls.acceleration, 1)
+        gap = self.gap_scale * contact.gap
+        vn = cls.normal_velocity(0)
+        if self.normal_switching == "max":
+            switching = [ca.fmax(gap, vn)]
+        else:
+            switching = [gap, vn]
+        n_normal = len(switching)
+        normal = contact.normal * contact.a_n
+        if contact.has_friction:
+            switching.append(cls.tangential_velocity(0))
+            slip = contact.tangents * (contact.mu * contact.a_n)
+            aux = {1.0: ca.vertcat(zeros_q, cls.solve_mass(normal - slip), 0),
+                   -1.0: ca.vertcat(zeros_q, cls.solve_mass(normal + slip), 0)}
+        else:
+            aux = {1.0: ca.vertcat(zeros_q, cls.solve_mass(normal), 0)}
+        signs = np.array(list(itertools.product((1.0, -1.0), repeat=len(switching))))
+        modes, names = [], []
+        for row in signs:
+            if np.all(row[:n_normal] < 0):
+                key = row[n_normal] if contact.has_friction else 1.0
+                modes.append(aux[key])
+                names.append(f"aux_{'plus' if key > 0 else 'minus'}_{contact.name}"
+                             if contact.has_friction else f"aux_n_{contact.name}")
+            else:
+                modes.append(f_ode)
+                names.append("ode_" + "".join("+" if c > 0 else "-" for c in row))
+        modes = ca.horzcat(*modes)
+        state_names = (*cls.q_names, *cls.v_names, "t")
+        pss = StewartSystem.from_sign_matrix(
+            y, cls.u, modes, ca.vertcat(*switching), signs,
+            state_names=state_names, control_names=cls.control_names,
+        )
+        return TimeFreezingSystem(
+            pss=pss, kind="inelastic", clock_index=2 * n, q_index=slice(0, n),
+            v_index=slice(n, 2 * n), modes=modes, region_names=tuple(names), cls=cls,
+            info=(("form", "stewart"), ("normal_switching", self.normal_switching),
+                  ("gap_scale", self.gap_scale), ("a_n", (contact.a_n,)),
+                  ("eps_t", (contact.eps_t,))),
         )
