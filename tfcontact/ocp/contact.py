@@ -570,15 +570,15 @@ def verify_plan(
     """The independent checks of a contact plan (see `Verification`).
 
     Re-simulates the plan's physical controls with the event-detecting reference of the
-    original system with impacts (`simulate_impacts`, `options.verify_method`), or else with the
-    FESD simulator on a grid `verify_refinement` times finer with a higher-order scheme,
-    and compares the end states (with the reference, an open-loop unstable plan may pass
-    on its local defects instead, see `_end_state_check`); checks the gaps on the plan,
-    the friction cone of the contact impulses recovered from the momentum balance on the
-    plan's collocation polynomials (M v' - f_v t' = J^T lambda, using the CLS's own M,
-    f_v and contact directions, not the time-freezing modes), Coulomb's maximal dissipation of those
-    impulses where a closed contact slips (B^T v at the elements' starts, stages and ends)
-    and the clock.
+    original system with impacts (`simulate_impacts`, `options.verify_method`), or else
+    with the FESD simulator on a grid `verify_refinement` times finer with a higher-order
+    scheme, and compares the end states (with the reference, an open-loop unstable plan
+    may pass on its local defects instead, see `_end_state_check`); checks the gaps on
+    the plan, the friction cone of the contact impulses recovered from the momentum
+    balance on the plan's collocation polynomials (M v' - f_v t' = J^T lambda, using the
+    CLS's own M, f_v and contact directions, not the time-freezing modes), Coulomb's
+    maximal dissipation of those impulses where a closed contact slips (B^T v at the
+    elements' starts, stages and ends) and the clock.
     """
     cls = system.cls
     notes: list[str] = []
