@@ -158,7 +158,7 @@ def test_inelastic_stewart_form_has_a_region_per_sign_pattern():
     tf = time_freeze(point_mass(2, mu=0.3, controlled=True), method=Inelastic(form="stewart"))
     heaviside = time_freeze(point_mass(2, mu=0.3, controlled=True))
     assert isinstance(tf.pss, StewartSystem) and tf.pss.n_regions == 8
-    assert dict(tf.info)["form"] == "stewart"
+    assert dict(tf.info)["form"] == "stewart" and dict(heaviside.info)["form"] == "heaviside"
     y = [0.1, 0.2, -0.3, 0.4, 0.0]
     modes, reference = modes_at(tf, y, [1, 2]), modes_at(heaviside, y, [1, 2])
     indicators = ca.Function("g", [tf.pss.x], [tf.pss.indicators])

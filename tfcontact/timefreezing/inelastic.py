@@ -179,7 +179,7 @@ class Inelastic:
             pss=pss, kind="inelastic", clock_index=2 * n, q_index=slice(0, n),
             v_index=slice(n, 2 * n), modes=modes, weights=weights,
             region_names=tuple(region_names), cls=cls,
-            info=(("alpha_names", tuple(alpha_names)),
+            info=(("form", "heaviside"), ("alpha_names", tuple(alpha_names)),
                   ("normal_switching", self.normal_switching),
                   ("gap_scale", self.gap_scale),
                   ("a_n", tuple(c.a_n for c in cls.contacts)),
@@ -191,7 +191,8 @@ class Inelastic:
         if cls.n_contacts != 1 or cls.contacts[0].n_tangents > 1:
             raise IncompatibleOptions(
                 "the Stewart form of `Inelastic` supports one contact with planar or no "
-                f"friction; `cls` has {cls.n_contacts} contacts: use form='heaviside'")
+                f"friction; `cls` has {cls.n_contacts} contact(s) with "
+                f"{[c.n_tangents for c in cls.contacts]} tangents: use form='heaviside'")
         contact = cls.contacts[0]
         n = cls.n_q
         t = ca.SX.sym("t")
