@@ -460,8 +460,8 @@ LOCAL_DEFECT_IMPACT_WINDOW = 0.01
 either side of it in the local defects (`Verification.local_defects`)."""
 
 SENSITIVITY_KICK = 1e-3
-"""The open-loop sensitivity replays start with every velocity moved by this fraction of
-the end-state tolerance (`Verification.open_loop_sensitivity`)."""
+"""The open-loop amplification replays start with every velocity moved by this fraction of
+the end-state tolerance (`Verification.open_loop_amplification`)."""
 
 
 def _segments(clocks: np.ndarray, frozen: np.ndarray) -> list[tuple[int, int]]:
@@ -671,7 +671,7 @@ def verify_plan(
     tolerances = {"end_state": options.end_state_tolerance, "gap": options.gap_tolerance,
                   "cone": options.cone_tolerance, "dissipation": options.cone_tolerance,
                   "clock": options.clock_tolerance}
-    end_state_ok, defect_sum, sensitivity = _end_state_check(
+    end_state_ok, defect_sum, amplification = _end_state_check(
         problem, system, ocp, options, deviation, local_defects, reference_end, notes)
     passed = (end_state_ok and min_gap >= -options.gap_tolerance
               and cone <= impulse_tolerance and dissipation <= impulse_tolerance
@@ -682,7 +682,7 @@ def verify_plan(
         end_state_deviation=deviation, min_gap=min_gap, friction_cone_violation=cone,
         clock_monotone=monotone, clock_end_error=clock_error, tolerances=tolerances,
         notes=tuple(notes), dissipation_violation=dissipation, local_defects=local_defects,
-        defect_sum=defect_sum, open_loop_sensitivity=sensitivity,
+        defect_sum=defect_sum, open_loop_amplification=amplification,
         open_loop_unstable=bool(end_state_ok and deviation > options.end_state_tolerance),
     )
 
@@ -691,13 +691,14 @@ def _end_state_check(problem: ContactProblem, system: TimeFreezingSystem, ocp: O
                      options: ContactSolverOptions, deviation: float,
                      local_defects: tuple[float, ...], reference_end: np.ndarray | None,
                      notes: list[str]) -> tuple[bool, float, float]:
-    """(passed, sum of the local defects, open-loop sensitivity) of the end-state check.
+    """(passed, sum of the local defects, open-loop amplification) of the end-state check.
 
     The open-loop replay from x0 passes within `end_state_tolerance`. Otherwise the plan
     still passes when the dynamics, not the plan, make the replay part from it: the local
     defects sum to within the tolerance (the replay could end at most that far away if
     the dynamics did not amplify errors), and the replay's measured sensitivity to a kick
-    of its start velocities, scaled to the defects' sum, accounts for the deviation.
+    of its start velocities (end moved / kick), times the defects' sum, reaches the
+    deviation.
     """
     tol = options.end_state_tolerance
     defects = np.asarray(local_defects, dtype=float)
@@ -718,7 +719,7 @@ def _end_state_check(problem: ContactProblem, system: TimeFreezingSystem, ocp: O
         + ("the dynamics amplify the plan's local errors (open-loop unstable), the "
            "end-state check passes on the local defects" if explained else
            "that does not account for the deviation, the end-state check fails"))
-    return bool(explained), defect_sum, sensitivity
+    return bool(explained), defect_sum, amplification
 
 
 def solve_contact(

@@ -20,8 +20,8 @@ class Verification:
     Attributes:
         passed: every check below within its tolerance. The end state passes when the
             open-loop replay ends within its tolerance, or, for a plan whose dynamics
-            amplify errors, when `defect_sum` is within it and `open_loop_sensitivity`
-            accounts for the replay's deviation (see `open_loop_sensitivity`).
+            amplify errors, when `defect_sum` is within it and `open_loop_amplification`
+            times `defect_sum` reaches the replay's deviation.
         method: how the plan was re-simulated.
         end_state_deviation: ||x_plan(T) - x_resimulated(T)|| (inf norm) [state units].
         min_gap: the smallest contact gap over the plan [m]; penetration is negative.
@@ -45,13 +45,13 @@ class Verification:
         defect_sum: the sum of the local defects (nan: none computed; inf: one could
             not be simulated). Without amplification of errors by the dynamics, the
             open-loop replay would end at most this far from the plan.
-        open_loop_sensitivity: measured only when the open-loop replay fails and
+        open_loop_amplification: measured only when the open-loop replay fails and
             `defect_sum` is within the end-state tolerance: how far the replay's end
             moves when every start velocity is kicked by 1e-3 x the tolerance (the larger
-            of + and -) [state units]; nan: not measured. The end state passes if this
-            amplification, applied to `defect_sum`, reaches the open-loop deviation: the
-            plan is locally right and open-loop unstable (a legged robot balancing on a
-            point foot, a hopper after several impacts).
+            of + and -), divided by the kick [-]; nan: not measured. The end state passes
+            if amplification x `defect_sum` reaches the open-loop deviation: the plan is
+            locally right and open-loop unstable (a legged robot balancing on a point
+            foot, a hopper after several impacts).
         open_loop_unstable: the end-state check passed that way (on `defect_sum`), not on
             the open-loop replay.
     """
@@ -68,7 +68,7 @@ class Verification:
     dissipation_violation: float = float("nan")
     local_defects: tuple[float, ...] = ()
     defect_sum: float = float("nan")
-    open_loop_sensitivity: float = float("nan")
+    open_loop_amplification: float = float("nan")
     open_loop_unstable: bool = False
 
     def to_dict(self) -> dict:
@@ -100,8 +100,8 @@ class Verification:
         k = int(np.nanargmax(defects))
         text = (f"; largest local defect {defects[k]:.2e} (interval {k + 1} of "
                 f"{defects.size}), sum {self.defect_sum:.2e}")
-        if np.isfinite(self.open_loop_sensitivity):
-            text += f"; open-loop sensitivity {self.open_loop_sensitivity:.2e}"
+        if not np.isnan(self.open_loop_amplification):
+            text += f"; open-loop amplification {self.open_loop_amplification:.3g}"
         return text
 
 
