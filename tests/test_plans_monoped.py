@@ -209,3 +209,18 @@ def test_an_unstable_plan_with_a_wrong_interval_fails(standing_plan):
     assert not v.open_loop_unstable and np.isnan(v.open_loop_amplification)
     assert not v.passed
 
+
+def test_an_open_loop_deviation_the_amplification_does_not_explain_fails(standing_plan,
+                                                                        monkeypatch):
+    """Small local defects alone do not pass a plan whose replay fails: if the replay did
+    not amplify errors (a kick moved its end by the kick itself), its 17.5 could not come
+    from the plan's 6.5e-5 of local defects, and the end-state check fails."""
+    from tfcontact.ocp import contact
+
+    mp, options, result = standing_plan
+    monkeypatch.setattr(contact, "_open_loop_sensitivity",
+                        lambda problem, system, ocp, end, kick: kick)
+    v = contact.verify_plan(mp.problem, result.system, result.ocp, result.physical, options)
+    assert v.defect_sum < 1e-3 and v.open_loop_amplification == pytest.approx(1.0)
+    assert not v.open_loop_unstable and not v.passed
+    assert any("does not account for the deviation" in note for note in v.notes)
