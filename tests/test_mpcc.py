@@ -5,6 +5,7 @@ import pytest
 from tfcontact.errors import InvalidInput, SolveFailed
 from tfcontact.mpcc import (
     Homotopy,
+    Ipopt,
     L1Penalty,
     LinfPenalty,
     Mpcc,
@@ -67,6 +68,30 @@ def test_parameters_and_repeated_solves_reuse_one_build():
         np.testing.assert_allclose(result.w, [max(target, 0), max(-target, 0)], atol=1e-6)
 
 
+def test_intermediate_tol_solves_only_the_stepping_stones_loosely():
+    homotopy = Homotopy(tolerance=1e-6)
+    tight = solve(corner_mpcc(), homotopy=homotopy)
+    loose = solve(corner_mpcc(), homotopy=homotopy, nlp=Ipopt(intermediate_tol=1e-2))
+    assert loose.status is MpccStatus.CONVERGED
+    np.testing.assert_allclose(loose.w, tight.w, atol=1e-6)
+    flags = [step.intermediate for step in loose.history]
+    assert flags == [step.sigma > 1e-6 * (1 + 1e-9) for step in loose.history]
+    assert flags[0] and not flags[-1]
+    # a loosely solved stepping stone is off the relaxed NLP's solution by more than `tol`
+    assert abs(loose.history[0].objective - tight.history[0].objective) > 1e-9
+
+
+def test_a_stepping_stone_that_meets_the_tolerance_is_solved_again_to_tol():
+    # y wants to be negative, so y = 0 already at sigma = 1: the first (loose) NLP meets
+    # the homotopy's tolerance, and the same sigma is solved again to IPOPT's `tol`.
+    result = solve(corner_mpcc(target=(1.0, -0.5)), homotopy=Homotopy(tolerance=1e-2),
+                   nlp=Ipopt(intermediate_tol=1e-2))
+    assert result.status is MpccStatus.CONVERGED
+    assert [(s.sigma, s.intermediate) for s in result.history] == [(1.0, True), (1.0, False)]
+    assert result.history[-1].residual < result.history[0].residual
+    np.testing.assert_allclose(result.w, [1.0, 0.0], atol=1e-8)
+
+
 def test_infeasible_problem_is_reported_not_marked_successful():
     mpcc = corner_mpcc(extra_g=lambda w: w[0] + w[1] + 1.0)  # x + y = -1 with x, y >= 0
     result = solve(mpcc, throw=False, homotopy=Homotopy(max_nlps=2))
@@ -83,6 +108,10 @@ def test_bad_input_is_named():
         Homotopy(kappa=1.5)
     with pytest.raises(InvalidInput, match="`sigma_0` must be positive"):
         Homotopy(sigma_0=0.0)
+    with pytest.raises(InvalidInput, match="`intermediate_tol` must be a finite number >= `tol`"):
+        Ipopt(tol=1e-8, intermediate_tol=1e-9)
+    with pytest.raises(InvalidInput, match="`intermediate_tol`"):
+        Ipopt(intermediate_tol=float("nan"))
     w = ca.SX.sym("w", 2)
     with pytest.raises(InvalidInput, match="`lbw` has 1 entries, expected 2"):
         Mpcc(w=w, f=w[0], g=ca.SX(0, 1), lbg=[], ubg=[], lbw=[0], ubw=[1, 1], w0=[0, 0],

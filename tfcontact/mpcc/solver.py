@@ -72,12 +72,20 @@ class Ipopt:
         max_iter: iterations per NLP.
         print_level: IPOPT's own output, 0 (silent) to 12.
         options: further IPOPT options by name (without the "ipopt." prefix).
+        intermediate_tol: if set, the homotopy's NLPs whose sigma lies above the
+            homotopy's tolerance are solved only to this tolerance (IPOPT's `tol`,
+            `constr_viol_tol` and `compl_inf_tol`): they are stepping stones, and a
+            loosely solved one, still inside the interior, warm starts the next NLP in
+            far fewer iterations than one driven to the bounds (the hopper's bench: 300
+            instead of 783 iterations with 1e-2). The NLP that meets the homotopy's
+            tolerance is always solved to `tol`.
     """
 
     tol: float = 1e-10
     max_iter: int = 500
     print_level: int = 0
     options: dict[str, Any] = field(default_factory=dict)
+    intermediate_tol: float | None = None
 
     def __post_init__(self) -> None:
         if not self.tol > 0:
@@ -87,8 +95,14 @@ class Ipopt:
         for key in ("tol", "max_iter", "print_level"):
             if key in self.options:
                 raise InvalidInput(f"give `{key}` as a field of Ipopt, not in `options`")
+        if self.intermediate_tol is not None and not (
+                math.isfinite(self.intermediate_tol) and self.intermediate_tol >= self.tol):
+            raise InvalidInput(f"`intermediate_tol` must be a finite number >= `tol` "
+                               f"({self.tol}), or None; got {self.intermediate_tol!r}")
 
-    def casadi_options(self) -> dict[str, Any]:
+    def casadi_options(self, intermediate: bool = False) -> dict[str, Any]:
+        """CasADi's nlpsol options; `intermediate`: those of the homotopy's stepping-stone
+        NLPs (`intermediate_tol`)."""
         ipopt = {
             "tol": self.tol,
             "max_iter": self.max_iter,
@@ -100,6 +114,12 @@ class Ipopt:
             "acceptable_tol": 1e-6,
         }
         ipopt.update(self.options)
+        if intermediate:
+            if self.intermediate_tol is None:
+                raise InvalidInput("this Ipopt has no `intermediate_tol`")
+            loose = self.intermediate_tol
+            ipopt.update(tol=loose, constr_viol_tol=loose, compl_inf_tol=loose,
+                         acceptable_tol=max(loose, float(ipopt["acceptable_tol"])))
         return {"ipopt": ipopt, "print_time": False, "error_on_fail": False}
 
 
@@ -121,7 +141,8 @@ class MpccStatus(enum.Enum):
 class HomotopyStep:
     """One NLP of the homotopy. `evaluation_seconds`: the part of `seconds` spent in
     CasADi's function evaluations (objective, constraints, their derivatives); the rest
-    is IPOPT's own work, mostly the KKT factorisations."""
+    is IPOPT's own work, mostly the KKT factorisations. `intermediate`: a stepping stone,
+    solved to `Ipopt.intermediate_tol` only."""
 
     sigma: float
     iterations: int
@@ -130,6 +151,7 @@ class HomotopyStep:
     seconds: float
     ipopt_status: str
     evaluation_seconds: float = 0.0
+    intermediate: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -232,6 +254,16 @@ class MpccSolver:
             "g": ca.vertcat(mpcc.g, extra.g),
         }
         self._solver = ca.nlpsol("mpcc", "ipopt", nlp_dict, self.nlp.casadi_options())
+        self._intermediate_solver = None
+        if self.nlp.intermediate_tol is not None:
+            # The same NLP with looser stopping tests; it reuses the first solver's
+            # derivative functions, so it costs no second symbolic differentiation.
+            options = self.nlp.casadi_options(intermediate=True)
+            options.update(hess_lag=self._solver.get_function("nlp_hess_l"),
+                           jac_g=self._solver.get_function("nlp_jac_g"),
+                           grad_f=self._solver.get_function("nlp_grad_f"))
+            self._intermediate_solver = ca.nlpsol("mpcc_intermediate", "ipopt", nlp_dict,
+                                                  options)
         self._diagnostics = ca.Function(
             "mpcc_diagnostics", [mpcc.w, mpcc.p], [products, mpcc.g, mpcc.f]
         )
@@ -293,30 +325,39 @@ class MpccSolver:
         solved_x: np.ndarray | None = None
         solved_lam: np.ndarray | None = None
         for k in range(homotopy.n_max):
-            start = time.perf_counter()
-            sol = self._solver(x0=x, p=np.concatenate([p, [sigma]]), lbx=self._lbx,
-                               ubx=self._ubx, lbg=self._lbg, ubg=self._ubg)
-            seconds = time.perf_counter() - start
-            stats = self._solver.stats()
-            ipopt_status = str(stats.get("return_status", "unknown"))
-            iterations = int(stats.get("iter_count", 0))
-            x_new = np.asarray(sol["x"]).reshape(-1)
-            if np.all(np.isfinite(x_new)):
-                x = x_new
-                lam_g = np.asarray(sol["lam_g"]).reshape(-1)
-            residual, violation, objective = self.diagnostics(x[: self._n_w], p)
-            evaluations = sum(float(v) for key, v in stats.items()
-                              if key.startswith("t_wall_nlp_"))
-            history.append(HomotopyStep(sigma, iterations, objective, residual, seconds,
-                                        ipopt_status, evaluations))
-            if verbose:
-                print(f"  {k + 1:>3} {sigma:9.2e} {iterations:5d} {objective:12.5e} "
-                      f"{residual:9.2e} {seconds:8.3f}  {ipopt_status}", flush=True)
-            solved = ipopt_status in _IPOPT_SOLVED
+            # Stepping stones (sigma above the tolerance) to `Ipopt.intermediate_tol`; one
+            # that meets the tolerance anyway is solved again to `tol` at the same sigma.
+            stepping_stone = (self._intermediate_solver is not None
+                              and sigma > homotopy.tolerance * (1 + 1e-9))
+            for intermediate in ((True, False) if stepping_stone else (False,)):
+                solver = self._intermediate_solver if intermediate else self._solver
+                start = time.perf_counter()
+                sol = solver(x0=x, p=np.concatenate([p, [sigma]]), lbx=self._lbx,
+                             ubx=self._ubx, lbg=self._lbg, ubg=self._ubg)
+                seconds = time.perf_counter() - start
+                stats = solver.stats()
+                ipopt_status = str(stats.get("return_status", "unknown"))
+                iterations = int(stats.get("iter_count", 0))
+                x_new = np.asarray(sol["x"]).reshape(-1)
+                if np.all(np.isfinite(x_new)):
+                    x = x_new
+                    lam_g = np.asarray(sol["lam_g"]).reshape(-1)
+                residual, violation, objective = self.diagnostics(x[: self._n_w], p)
+                evaluations = sum(float(v) for key, v in stats.items()
+                                  if key.startswith("t_wall_nlp_"))
+                history.append(HomotopyStep(sigma, iterations, objective, residual, seconds,
+                                            ipopt_status, evaluations, intermediate))
+                if verbose:
+                    loose = f" (to tol {self.nlp.intermediate_tol:.0e})" if intermediate else ""
+                    print(f"  {k + 1:>3} {sigma:9.2e} {iterations:5d} {objective:12.5e} "
+                          f"{residual:9.2e} {seconds:8.3f}  {ipopt_status}{loose}", flush=True)
+                solved = ipopt_status in _IPOPT_SOLVED
+                if not (intermediate and solved and residual <= homotopy.tolerance):
+                    break
             if solved:
                 status = MpccStatus.NOT_CONVERGED
                 solved_x, solved_lam = x.copy(), lam_g
-                if residual <= homotopy.tolerance:
+                if residual <= homotopy.tolerance and not intermediate:
                     status = MpccStatus.CONVERGED
                     break
             else:
