@@ -8,7 +8,9 @@ is not a rigid body, see the URDF's comment); nosnoc_py (the bench extra,
 with the settings of its own hopper example: N = 20, N_FE = 3, Radau IIA with 2 stages,
 Stewart time-freezing, Scholtes with sigma_0 = 100 and 6 homotopy steps; tfcontact runs
 the settings of `tfcontact plan hopper` for this task (`hopper_options("bench")`: the
-homotopy runs from sigma_0 = 0.1 to residual 1e-3, where nosnoc_py's six steps end).
+homotopy runs from sigma_0 = 0.1 to residual 1e-3, where nosnoc_py's six steps end, its
+stepping-stone NLPs solved to IPOPT tolerance 0.1), and the same with every NLP solved to
+1e-8. The cost column is tfcontact's OCP cost (nosnoc_py discretises its cost otherwise).
 Both track the same reference (T = 1 s, x: 0.1 -> 1.0, apex height 1.0). The script
 prints and writes a markdown table: wall time, NLPs, IPOPT iterations, complementarity
 residual, and the end-state deviation of each plan from the replay of its controls in the
@@ -24,6 +26,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import dataclasses  # noqa: E402
 import datetime  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
@@ -40,13 +43,13 @@ from tfcontact.timefreezing import (  # noqa: E402
 )
 
 
-def run_tfcontact(options: ContactSolverOptions) -> dict:
+def run_tfcontact(options: ContactSolverOptions, method: str) -> dict:
     start = time.perf_counter()
     _, _, problem = hopper_problem("bench")
     result = solve_contact(problem, options, verbose=True)
     wall = time.perf_counter() - start
     return {
-        "method": "tfcontact (URDF, Heaviside time-freezing, FESD)",
+        "method": method, "cost": result.ocp.cost,
         "wall": wall, "build": result.timings["build"], "solve": result.timings["solve"],
         "evaluations": result.ocp.mpcc_result.evaluation_time,
         "nlps": result.ocp.n_nlps, "iterations": result.ocp.total_iterations,
@@ -175,7 +178,14 @@ def main() -> None:
     parser.add_argument("--out", default="benchmarks/hopper_bench.md")
     args = parser.parse_args()
     options = hopper_options("bench")
-    rows = [run_tfcontact(options)]
+    loose = options.nlp.intermediate_tol
+    rows = [run_tfcontact(options, "tfcontact (URDF, Heaviside time-freezing, FESD; "
+                                   f"stepping-stone NLPs to tol {loose:g})")]
+    # The same task with every NLP solved to IPOPT's tol: what the stepping stones save.
+    tight = dataclasses.replace(options, nlp=dataclasses.replace(options.nlp,
+                                                                 intermediate_tol=None))
+    rows.append(run_tfcontact(tight, "tfcontact (the same, every NLP to tol "
+                                     f"{options.nlp.tol:g})"))
     if not args.skip_nosnoc:
         try:
             rows.append(run_nosnoc(options.end_state_tolerance))
@@ -187,8 +197,8 @@ def main() -> None:
         "Command: `python scripts/bench_hopper.py`", "",
         "| method | wall [s] | NLP build [s] | NLP solves [s] | of which function "
         "evaluations [s] | NLPs | IPOPT iterations | ms per iteration | compl. residual | "
-        "end-state deviation | x(T) | status |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "end-state deviation | x(T) | cost | status |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for r in rows:
         per_iteration = 1e3 * r["solve"] / max(r["iterations"], 1)
@@ -196,11 +206,16 @@ def main() -> None:
             f"| {r['method']} | {r['wall']:.1f} | {r['build']:.1f} | {r['solve']:.1f} | "
             f"{r.get('evaluations', float('nan')):.1f} | {r['nlps']} | {r['iterations']} | "
             f"{per_iteration:.0f} | {r['residual']:.1e} | {r['deviation']:.1e} | "
-            f"{r['x_end']:.3f} | {r['status']} |")
-    if len(rows) == 2:
-        ratio = rows[1]["wall"] / rows[0]["wall"]
-        lines += ["", f"Wall-time ratio nosnoc_py / tfcontact: {ratio:.2f}; "
-                  f"iteration ratio: {rows[1]['iterations'] / max(rows[0]['iterations'], 1):.2f}"]
+            f"{r['x_end']:.3f} | {r.get('cost', float('nan')):.2f} | {r['status']} |")
+    nosnoc = [r for r in rows if r["method"].startswith("nosnoc")]
+    if nosnoc:
+        lines.append("")
+        for r in rows:
+            if r is nosnoc[0]:
+                continue
+            lines.append(f"Wall-time ratio nosnoc_py / {r['method']}: "
+                         f"{nosnoc[0]['wall'] / r['wall']:.2f}; iteration ratio: "
+                         f"{nosnoc[0]['iterations'] / max(r['iterations'], 1):.2f}  ")
     text = "\n".join(lines) + "\n"
     print(text)
     out = Path(args.out)

@@ -81,6 +81,14 @@ def test_intermediate_tol_solves_only_the_stepping_stones_loosely():
     assert abs(loose.history[0].objective - tight.history[0].objective) > 1e-9
 
 
+def test_intermediate_tol_with_a_quasi_newton_hessian():
+    # no exact Hessian to share with the stepping stones' IPOPT instance
+    nlp = Ipopt(intermediate_tol=1e-2, options={"hessian_approximation": "limited-memory"})
+    result = solve(corner_mpcc(), homotopy=Homotopy(tolerance=1e-6), nlp=nlp)
+    assert result.status is MpccStatus.CONVERGED
+    np.testing.assert_allclose(result.w, [1.0, 0.0], atol=1e-5)
+
+
 def test_a_stepping_stone_that_meets_the_tolerance_is_solved_again_to_tol():
     # y wants to be negative, so y = 0 already at sigma = 1: the first (loose) NLP meets
     # the homotopy's tolerance, and the same sigma is solved again to IPOPT's `tol`.

@@ -145,3 +145,23 @@ def test_short_plan_passes_the_verification_when_round_off_moves_the_iterates():
     assert result.success, result.summary()
     gaps = np.asarray(result.system.cls.function("gaps")(result.physical.q.T)).reshape(-1)
     assert gaps.max() > 0.05  # it flies
+
+
+def test_bench_task_with_loose_stepping_stones_passes_the_verification():
+    """The configuration of the speed comparison (scripts/bench_hopper.py): the homotopy's
+    stepping-stone NLPs solved only to IPOPT tolerance 0.1, the last to 1e-8. Its plan must
+    pass the same checks as every plan (benchmarks/hopper_bench.md, seventh session)."""
+    from tfcontact.ocp.contact import solve_contact
+    from tfcontact.scenes.hopper import hopper_options, hopper_problem
+
+    _, _, problem = hopper_problem("bench")
+    options = hopper_options("bench")
+    assert options.nlp.intermediate_tol == pytest.approx(0.1)
+    result = solve_contact(problem, options, verbose=False)
+    assert result.success, result.summary()
+    steps = result.ocp.mpcc_result.history
+    assert [s.intermediate for s in steps] == [True] * (len(steps) - 1) + [False]
+    assert steps[-1].residual <= options.homotopy.tolerance
+    gaps = np.asarray(result.system.cls.function("gaps")(result.physical.q.T)).reshape(-1)
+    assert gaps.max() > 0.05  # it flies
+    assert result.verification.end_state_deviation <= options.end_state_tolerance

@@ -259,9 +259,10 @@ class MpccSolver:
             # The same NLP with looser stopping tests; it reuses the first solver's
             # derivative functions, so it costs no second symbolic differentiation.
             options = self.nlp.casadi_options(intermediate=True)
-            options.update(hess_lag=self._solver.get_function("nlp_hess_l"),
-                           jac_g=self._solver.get_function("nlp_jac_g"),
-                           grad_f=self._solver.get_function("nlp_grad_f"))
+            for option, name in (("hess_lag", "nlp_hess_l"), ("jac_g", "nlp_jac_g"),
+                                 ("grad_f", "nlp_grad_f")):
+                if self._solver.has_function(name):  # no Hessian with a quasi-Newton one
+                    options[option] = self._solver.get_function(name)
             self._intermediate_solver = ca.nlpsol("mpcc_intermediate", "ipopt", nlp_dict,
                                                   options)
         self._diagnostics = ca.Function(
