@@ -78,7 +78,9 @@ class Ipopt:
             loosely solved one, still inside the interior, warm starts the next NLP in
             far fewer iterations than one driven to the bounds (the hopper's bench task:
             199-253 instead of 561-783 iterations with 0.1). The NLP that meets the
-            homotopy's tolerance is always solved to `tol`.
+            homotopy's tolerance is always solved to `tol`. Off by default: the plans it
+            reaches can be other local solutions, and as the FESD simulator's default it
+            failed three time-freezing tests (benchmarks/timefreezing.md).
     """
 
     tol: float = 1e-10
