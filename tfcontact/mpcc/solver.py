@@ -296,6 +296,29 @@ class MpccSolver:
                      float(np.max(w - self.mpcc.ubw, initial=0.0)))
         return residual, max(violation, bounds), float(f)
 
+    def _solve_nlp(self, x: np.ndarray, lam_g: np.ndarray | None, p: np.ndarray,
+                   sigma: float, intermediate: bool
+                   ) -> tuple[np.ndarray, np.ndarray | None, HomotopyStep, float]:
+        """One relaxed NLP from x: the new iterate (x kept if IPOPT returned non-finite
+        values), its constraint multipliers, the step's record and the MPCC's constraint
+        violation there."""
+        solver = self._intermediate_solver if intermediate else self._solver
+        start = time.perf_counter()
+        sol = solver(x0=x, p=np.concatenate([p, [sigma]]), lbx=self._lbx, ubx=self._ubx,
+                     lbg=self._lbg, ubg=self._ubg)
+        seconds = time.perf_counter() - start
+        stats = solver.stats()
+        x_new = np.asarray(sol["x"]).reshape(-1)
+        if np.all(np.isfinite(x_new)):
+            x = x_new
+            lam_g = np.asarray(sol["lam_g"]).reshape(-1)
+        residual, violation, objective = self.diagnostics(x[: self._n_w], p)
+        evaluations = sum(float(v) for key, v in stats.items() if key.startswith("t_wall_nlp_"))
+        step = HomotopyStep(sigma, int(stats.get("iter_count", 0)), objective, residual,
+                            seconds, str(stats.get("return_status", "unknown")), evaluations,
+                            intermediate)
+        return x, lam_g, step, violation
+
     def solve(self, p: np.ndarray | None = None, w0: np.ndarray | None = None, *,
               homotopy: Homotopy | None = None, verbose: bool = False,
               feasibility_tol: float = 1e-6) -> MpccResult:
@@ -333,28 +356,15 @@ class MpccSolver:
             stepping_stone = (self._intermediate_solver is not None
                               and sigma > homotopy.tolerance * (1 + 1e-9))
             for intermediate in ((True, False) if stepping_stone else (False,)):
-                solver = self._intermediate_solver if intermediate else self._solver
-                start = time.perf_counter()
-                sol = solver(x0=x, p=np.concatenate([p, [sigma]]), lbx=self._lbx,
-                             ubx=self._ubx, lbg=self._lbg, ubg=self._ubg)
-                seconds = time.perf_counter() - start
-                stats = solver.stats()
-                ipopt_status = str(stats.get("return_status", "unknown"))
-                iterations = int(stats.get("iter_count", 0))
-                x_new = np.asarray(sol["x"]).reshape(-1)
-                if np.all(np.isfinite(x_new)):
-                    x = x_new
-                    lam_g = np.asarray(sol["lam_g"]).reshape(-1)
-                residual, violation, objective = self.diagnostics(x[: self._n_w], p)
-                evaluations = sum(float(v) for key, v in stats.items()
-                                  if key.startswith("t_wall_nlp_"))
-                history.append(HomotopyStep(sigma, iterations, objective, residual, seconds,
-                                            ipopt_status, evaluations, intermediate))
+                x, lam_g, step, violation = self._solve_nlp(x, lam_g, p, sigma, intermediate)
+                history.append(step)
+                residual, objective = step.residual, step.objective
                 if verbose:
                     loose = f" (to tol {self.nlp.intermediate_tol:.0e})" if intermediate else ""
-                    print(f"  {k + 1:>3} {sigma:9.2e} {iterations:5d} {objective:12.5e} "
-                          f"{residual:9.2e} {seconds:8.3f}  {ipopt_status}{loose}", flush=True)
-                solved = ipopt_status in _IPOPT_SOLVED
+                    print(f"  {k + 1:>3} {sigma:9.2e} {step.iterations:5d} {objective:12.5e} "
+                          f"{residual:9.2e} {step.seconds:8.3f}  {step.ipopt_status}{loose}",
+                          flush=True)
+                solved = step.ipopt_status in _IPOPT_SOLVED
                 if not (intermediate and solved and residual <= homotopy.tolerance):
                     break
             if solved:
