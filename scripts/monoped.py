@@ -74,7 +74,7 @@ def plan_checks(mp: MonopedProblem, result: ContactResult) -> dict:
     gaps = np.asarray(mp.system.cls.function("gaps")(q_all.T)).T[:, 0]
     holes = mp.hole_values(q_all)
     phys = result.physical
-    gap_t = np.asarray(mp.system.cls.function("gaps")(phys.q.T)).reshape(-1)
+    gap_t = phys.gaps[:, 0]
     airborne = gap_t > 1e-3
     take_offs = int(np.sum(airborne[1:] & ~airborne[:-1]))
     return {

@@ -143,8 +143,7 @@ def test_short_plan_passes_the_verification_when_round_off_moves_the_iterates():
     options = replace(options, nlp=replace(options.nlp, tol=1e-9))
     result = solve_contact(problem, options, verbose=False)
     assert result.success, result.summary()
-    gaps = np.asarray(result.system.cls.function("gaps")(result.physical.q.T)).reshape(-1)
-    assert gaps.max() > 0.05  # it flies
+    assert result.physical.gaps[:, 0].max() > 0.05  # it flies
 
 
 def test_bench_task_with_loose_stepping_stones_passes_the_verification():
@@ -162,6 +161,5 @@ def test_bench_task_with_loose_stepping_stones_passes_the_verification():
     steps = result.ocp.mpcc_result.history
     assert [s.intermediate for s in steps] == [True] * (len(steps) - 1) + [False]
     assert steps[-1].residual <= options.homotopy.tolerance
-    gaps = np.asarray(result.system.cls.function("gaps")(result.physical.q.T)).reshape(-1)
-    assert gaps.max() > 0.05  # it flies
+    assert result.physical.gaps[:, 0].max() > 0.05  # it flies
     assert result.verification.end_state_deviation <= options.end_state_tolerance

@@ -416,6 +416,12 @@ def test_physical_time_recovery_of_an_exact_drop():
     assert np.count_nonzero(np.diff(phys.t) == 0) == 1  # the jump: pre and post at t1
     assert phys.t[-1] == pytest.approx(y[-1, 2])
     assert len(phys.segments()) == 2
+    # the point mass's gap is its height: falling before t1, on the ground after
+    assert phys.gaps.shape == (len(phys.t), 1)
+    falling = phys.t < t1
+    np.testing.assert_allclose(phys.gaps[falling, 0], 1.0 - 0.5 * G * phys.t[falling] ** 2,
+                               atol=1e-12)
+    assert np.all(phys.gaps[~falling, 0] == 0.0)
 
 
 # ----------------------------------------------------------------------------- reference

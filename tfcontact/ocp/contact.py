@@ -601,7 +601,7 @@ def verify_plan(
     # Gaps on the physical plan only: inside a frozen piece an elastic auxiliary spring
     # runs *inside* the obstacle by construction (the clock stands still there).
     gap_fn = cls.function("gaps")
-    gaps = np.asarray(gap_fn(physical.q.T)).T
+    gaps = physical.gaps
     stage_q = ocp.x_stages[running][:, :, system.q_index].reshape(-1, system.q_index.stop
                                                                    - system.q_index.start)
     stage_gaps = np.asarray(gap_fn(stage_q.T)).T if stage_q.size else gaps

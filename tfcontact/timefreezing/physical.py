@@ -86,6 +86,16 @@ class PhysicalTrajectory:
         return self.y[:, self.system.v_index]
 
     @property
+    def gaps(self) -> np.ndarray:
+        """Contact gaps f_c(q) [m] at every sample, shape (M, n_contacts); (M, 0) for a
+        system without contacts."""
+        cls = self.system.cls
+        if cls is None:
+            return np.zeros((len(self.t), 0))
+        gaps = np.asarray(cls.function("gaps")(self.q.T))
+        return gaps.T.reshape(len(self.t), cls.n_contacts)
+
+    @property
     def impact_times(self) -> np.ndarray:
         return np.array([imp.time for imp in self.impacts])
 
