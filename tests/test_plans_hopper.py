@@ -160,6 +160,5 @@ def test_bench_task_with_loose_stepping_stones_passes_the_verification():
     assert result.success, result.summary()
     steps = result.ocp.mpcc_result.history
     assert [s.intermediate for s in steps] == [True] * (len(steps) - 1) + [False]
-    assert steps[-1].residual <= options.homotopy.tolerance
     assert result.physical.gaps[:, 0].max() > 0.05  # it flies
     assert result.verification.end_state_deviation <= options.end_state_tolerance
