@@ -46,7 +46,7 @@ from tfcontact.errors import InvalidInput, positive_int
 from tfcontact.fesd.forms import Form, form_of
 from tfcontact.fesd.system import HeavisideSystem, StewartSystem
 from tfcontact.fesd.tableau import RadauIIA, Scheme, Tableau, as_tableau
-from tfcontact.mpcc.problem import Mpcc
+from tfcontact.mpcc.problem import Mpcc, RepeatedBlock
 
 
 @dataclass(frozen=True)
@@ -493,11 +493,18 @@ def discretize(
     U = gather(p if controls_in_p else w, u_elem)
     H = gather(w, h_idx[:, None]) if fesd else ca.SX(ca.DM.ones(1, E) * grid.h0)
     mapped = element.map(E)
-    residual, theta_st, lambda_st, lambda_end = mapped(
-        gather(w, x_start_idx), gather(w, X_idx), gather(w, Z_idx), H, U,
-        gather(w, xe_idx), gather(w, zb_idx),
-    )
+    arguments = (gather(w, x_start_idx), gather(w, X_idx), gather(w, Z_idx), H, U,
+                 gather(w, xe_idx), gather(w, zb_idx))
+    residual, theta_st, lambda_st, lambda_end = mapped(*arguments)
     g_parts = [w[x_first.tolist()] - p[p_x0.tolist()], ca.vec(residual)]
+    # The collocation residuals (g's bulk) as one repeated function, differentiated once
+    n_res = residual.shape[0]
+    repeated = RepeatedBlock(
+        function=ca.Function("fesd_residual", [xs, Xv, Zv, hs, us, xes, zbs],
+                             [ca.vertcat(*res)]),
+        arguments=arguments,
+        rows=n_x + np.arange(E * n_res).reshape(E, n_res),
+    )
     m = form.m
 
     # ---- complementarity
@@ -559,7 +566,7 @@ def discretize(
     blocks.update({name: idx.reshape(-1) for name, idx in zb_blocks.items()})
     n_g = g.numel()
     mpcc = Mpcc(w=w, f=f_obj, g=g, lbg=np.zeros(n_g), ubg=np.zeros(n_g), lbw=lbw, ubw=ubw,
-                w0=w0, G=G, H=Hc, p=p, blocks=blocks)
+                w0=w0, G=G, H=Hc, p=p, blocks=blocks, repeated=(repeated,))
     layout = Layout(x=x_idx, x_stages=X_idx, u=u_idx, controls_in_p=controls_in_p,
                     h=h_idx if fesd else None, z=z_blocks, zb=zb_blocks, p_x0=p_x0)
     return Discretization(

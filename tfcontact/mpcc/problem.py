@@ -21,6 +21,45 @@ from tfcontact.errors import InvalidInput
 
 
 @dataclass(frozen=True, eq=False)
+class RepeatedBlock:
+    """Rows of g that one function gives for each of E elements:
+    g[rows[e]] = function(arguments[0][:, e], arguments[1][:, e], ...).
+
+    The solver then differentiates `function` once instead of E inlined copies
+    (`tfcontact.mpcc.derivatives`). Optional: an MPCC without blocks is differentiated
+    as a whole.
+
+    Args:
+        function: an SX Function of column-vector inputs with one output (n_r, 1).
+        arguments: one SX matrix (numel of input i, E) per input; each entry an entry of
+            w (plus a term free of w) or free of w (parameters, constants).
+        rows: (E, n_r) indices into g.
+    """
+
+    function: ca.Function
+    arguments: tuple[ca.SX, ...]
+    rows: np.ndarray
+
+    def __post_init__(self) -> None:
+        fn = self.function
+        if fn.n_out() != 1 or fn.size2_out(0) != 1:
+            raise InvalidInput("a RepeatedBlock's function must have one column output")
+        if len(self.arguments) != fn.n_in():
+            raise InvalidInput(f"`arguments` has {len(self.arguments)} entries, the "
+                               f"function {fn.n_in()} inputs")
+        rows = np.asarray(self.rows, dtype=int)
+        if rows.ndim != 2 or rows.shape[1] != fn.numel_out(0) or np.any(rows < 0):
+            raise InvalidInput(f"`rows` must be nonnegative indices of shape "
+                               f"(E, {fn.numel_out(0)}), got {rows.shape}")
+        for i, argument in enumerate(self.arguments):
+            if fn.size2_in(i) != 1 or argument.shape != (fn.numel_in(i), rows.shape[0]):
+                raise InvalidInput(
+                    f"argument {i} must be a ({fn.numel_in(i)}, {rows.shape[0]}) matrix "
+                    f"for a column input, got {argument.shape} for {fn.size_in(i)}")
+        object.__setattr__(self, "rows", rows)
+
+
+@dataclass(frozen=True, eq=False)
 class Mpcc:
     """A mathematical program with complementarity constraints, built but not solved.
 
@@ -35,6 +74,8 @@ class Mpcc:
         p: parameters, SX column (n_p, 1) (may be empty); values given at solve time.
         blocks: named index arrays into w (for example "x", "u", "h", "theta"),
             so that a solution can be read and a build inspected and counted.
+        repeated: rows of g that repeat one function over elements (`RepeatedBlock`),
+            so that the solver differentiates it once.
     """
 
     w: ca.SX
@@ -49,6 +90,7 @@ class Mpcc:
     H: ca.SX
     p: ca.SX = field(default_factory=lambda: ca.SX(0, 1))
     blocks: dict[str, np.ndarray] = field(default_factory=dict)
+    repeated: tuple[RepeatedBlock, ...] = ()
 
     def __post_init__(self) -> None:
         n_w = self.w.numel()
@@ -62,6 +104,9 @@ class Mpcc:
             raise InvalidInput(
                 f"`G` and `H` must have equal length, got {self.G.numel()} and {self.H.numel()}"
             )
+        n_g_rows = [int(b.rows.max(initial=-1)) for b in self.repeated]
+        if any(r >= n_g for r in n_g_rows):
+            raise InvalidInput(f"a RepeatedBlock names rows beyond g's {n_g}")
         if np.any(self.lbw > self.ubw):
             i = int(np.argmax(self.lbw > self.ubw))
             raise InvalidInput(f"`lbw[{i}]` = {self.lbw[i]} exceeds `ubw[{i}]` = {self.ubw[i]}")
