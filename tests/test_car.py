@@ -180,21 +180,23 @@ def test_time_freezing_sliding_modes_are_the_car_modes(w, mode):
 
 @pytest.mark.slow
 def test_time_freezing_fesd_plan_switches_at_the_thresholds():
-    from tfcontact.fesd import Fesd, GaussLegendre
-    from tfcontact.mpcc import Homotopy, Ipopt, Scholtes
-    from tfcontact.ocp import Transcription, solve
-    from tfcontact.scenes.car import time_optimal_ocp
+    """The script's multistart (scripts/car_hysteresis.py): single starts land in local
+    minima (11.0, 12.89 or 13.0 s) depending even on round-off, so one start alone would
+    test luck, not the method."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "scripts" / "car_hysteresis.py"
+    spec = importlib.util.spec_from_file_location("car_hysteresis", path)
+    script = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = script  # its dataclasses look their module up
+    spec.loader.exec_module(script)
 
     n = 10
-    system, ocp = time_optimal_ocp(n)
-    res = solve(
-        ocp,
-        discretization=Transcription(scheme=GaussLegendre(2), n_finite_elements=3, method=Fesd()),
-        relaxation=Scholtes(),
-        homotopy=Homotopy(sigma_0=0.1, kappa=0.1, tolerance=1e-9),
-        nlp=Ipopt(tol=1e-9, max_iter=3000),
-        verbose=False,
-    )
+    run = script.solve_fesd(n, stop_below=152 / 15 + 1e-3)
+    system, res = run.system, run.best
+    assert res is not None, run.tried
     x = res.x
     w = x[:, system.memory_index]
     up = np.flatnonzero(np.diff(w) > 1e-6)
