@@ -168,13 +168,29 @@ class _Model:
             "reference_terms", [q, v, u],
             [cls.acceleration, minv_jac, jac, ca.vertcat(drift_n, drift_t), contact.gap],
         )
+        # Flight needs only a(q, v, u) and the gap: functions of their own skip M^-1 J,
+        # the drifts and the conversions of unused outputs (most calls are in flight).
+        self._acceleration = ca.Function("reference_acceleration", [q, v, u],
+                                         [cls.acceleration])
+        self._gap = ca.Function("reference_gap", [q], [contact.gap])
         self.calls = 0
         self.max_calls = math.inf
 
-    def terms(self, x: np.ndarray, u: np.ndarray):
+    def _count(self) -> None:
         self.calls += 1
         if self.calls > self.max_calls:
             raise _BudgetExceeded
+
+    def free_acceleration(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        self._count()
+        return np.asarray(self._acceleration(x[: self.n], x[self.n :], u)).ravel()
+
+    def gap(self, x: np.ndarray) -> float:
+        self._count()
+        return float(self._gap(x[: self.n]))
+
+    def terms(self, x: np.ndarray, u: np.ndarray):
+        self._count()
         q, v = x[: self.n], x[self.n :]
         a_free, minv_jac, jac, drift, gap = (np.asarray(r) for r in self.fun(q, v, u))
         return a_free.ravel(), minv_jac, jac, drift.ravel(), float(gap.ravel()[0])
@@ -431,14 +447,21 @@ def _simulate_elastic_contacts(
     gaps = ca.vertcat(*[c.gap for c in cls.contacts])
     terms = ca.Function("reference_terms", [q, v, u],
                         [cls.acceleration, cls.solve_mass(normals), normals, gaps])
+    # The integrator's right-hand side and events need only a(q, v, u) and gaps(q):
+    # functions of their own skip M^-1 n and the conversions of unused outputs.
+    acceleration = ca.Function("reference_acceleration", [q, v, u], [cls.acceleration])
+    gap_values = ca.Function("reference_gaps", [q], [gaps])
     restitution = np.array([c.restitution for c in cls.contacts])
     calls = 0
 
-    def evaluate(x: np.ndarray, u_now: np.ndarray):
+    def count() -> None:
         nonlocal calls
         calls += 1
         if calls > max_rhs_evaluations:
             raise _BudgetExceeded
+
+    def evaluate(x: np.ndarray, u_now: np.ndarray):
+        count()
         return [np.asarray(r) for r in terms(x[:n], x[n:], u_now)]
 
     gap0 = evaluate(x0, control(0.0))[3].ravel()
@@ -476,7 +499,8 @@ def _simulate_elastic_contacts(
 
     def touchdown(i: int, u_now: Callable[[float], np.ndarray]):
         def event(t: float, x: np.ndarray) -> float:
-            return float(evaluate(x, u_now(t))[3].ravel()[i])
+            count()
+            return float(gap_values(x[:n])[i])
         event.terminal, event.direction = True, -1
         return event
 
@@ -507,7 +531,9 @@ def _simulate_elastic_contacts(
             t_stop, segment_control = _segment(control, stops, t_cur)
 
             def rhs(t: float, x: np.ndarray, u_now=segment_control) -> np.ndarray:
-                return np.concatenate([x[n:], evaluate(x, u_now(t))[0].ravel()])
+                count()
+                return np.concatenate(
+                    [x[n:], np.asarray(acceleration(x[:n], x[n:], u_now(t))).ravel()])
 
             step = first_step(t_cur, x_cur)
             if step is not None:
@@ -619,11 +645,10 @@ def _phase(model: _Model, mode: str, direction, control):
 
     if mode == FREE:
         def rhs(t, x):
-            a_free = model.terms(x, control(t))[0]
-            return np.concatenate([x[n:], a_free])
+            return np.concatenate([x[n:], model.free_acceleration(x, control(t))])
 
         def touchdown(t, x):
-            return model.terms(x, control(t))[4]
+            return model.gap(x)
 
         touchdown.terminal, touchdown.direction = True, -1
         return rhs, [touchdown]
