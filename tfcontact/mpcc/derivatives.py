@@ -20,6 +20,8 @@ import numpy as np
 from tfcontact.errors import InvalidInput
 from tfcontact.mpcc.problem import RepeatedBlock
 
+Triplets = tuple[np.ndarray, np.ndarray, ca.MX]  # rows, columns (-1: drop), values
+
 
 def _local_to_global(block: RepeatedBlock, x: ca.SX) -> np.ndarray | None:
     """(n_loc, E) index into x of each element argument entry, -1 where the entry does
@@ -96,46 +98,17 @@ def repeated_block_derivatives(x: ca.SX, p: ca.SX, f: ca.SX, g: ca.SX,
         X, P, lam_f, lam_g[rest.tolist()])
     jr_rows, jr_cols = (np.asarray(a) for a in jac_rest.sparsity().get_triplet())
     hr_rows, hr_cols = (np.asarray(a) for a in hess_rest.sparsity().get_triplet())
-    j_rows, j_cols, j_values = [rest[jr_rows]], [jr_cols], [_nonzeros(J_r)]
-    h_rows, h_cols, h_values = [hr_rows], [hr_cols], [_nonzeros(H_r)]
+    # (rows, columns, values) of the entries, -1 for an entry to drop
+    jac_triplets = ([rest[jr_rows]], [jr_cols], [_nonzeros(J_r)])
+    hess_triplets = ([hr_rows], [hr_cols], [_nonzeros(H_r)])
 
     for block, index in zip(blocks, locals_, strict=True):
-        E = block.rows.shape[0]
-        n_loc = index.shape[0]
-        v = ca.SX.sym("v", n_loc)
-        parts = ca.vertsplit(v, np.cumsum([0] + [a.shape[0] for a in block.arguments]).tolist())
-        args = [ca.reshape(part, block.function.size_in(i))
-                for i, part in enumerate(parts)]
-        residual = block.function(*args)
-        lam = ca.SX.sym("lam", residual.numel())
-        jac = ca.jacobian(residual, v)
-        hess = ca.hessian(ca.dot(lam, residual), v)[0]
-        name = block.function.name()
-        element_jacobian = ca.Function(f"{name}_jacobian", [v], [residual, jac])
-        element_hessian = ca.Function(f"{name}_hessian", [v, lam], [hess])
-        V = ca.Function("arguments", [x, p], [ca.vertcat(*block.arguments)])(X, P)
-        lam_e = ca.reshape(lam_g[block.rows.reshape(-1).tolist()], residual.numel(), E)
-        r_e, J_e = element_jacobian.map(E, *parallel)(V)
-        g_pieces.append(ca.vec(r_e))
-        g_order.append(block.rows.reshape(-1))  # vec is column-major: element by element
-        H_e = element_hessian.map(E, *parallel)(V, lam_e)
-        j_values.append(_nonzeros(J_e))
-        h_values.append(_nonzeros(H_e))
-        # element e's nonzeros are contiguous (its columns come after e - 1's)
-        jr, jc = (np.asarray(a) for a in jac.sparsity().get_triplet())
-        hr, hc = (np.asarray(a) for a in hess.sparsity().get_triplet())
-        elements = np.arange(E)
-        # Jacobian: row k of element e is g row block.rows[e, k]; column a is x[index[a, e]]
-        col = index[jc[None, :], elements[:, None]]
-        row = block.rows[elements[:, None], jr[None, :]]
-        keep = col >= 0
-        j_rows.append(np.where(keep, row, -1).reshape(-1))
-        j_cols.append(np.where(keep, col, -1).reshape(-1))
-        # Hessian: the upper triangle of P^T H P, so keep (a, b) with index[a] <= index[b]
-        ga, gb = index[hr[None, :], elements[:, None]], index[hc[None, :], elements[:, None]]
-        keep = (ga >= 0) & (gb >= 0) & (ga <= gb)
-        h_rows.append(np.where(keep, ga, -1).reshape(-1))
-        h_cols.append(np.where(keep, gb, -1).reshape(-1))
+        g_e, jac_e, hess_e = _element_part(block, index, (x, p), (X, P, lam_g), parallel)
+        g_pieces.append(g_e)
+        g_order.append(block.rows.reshape(-1))
+        for triplets, part in ((jac_triplets, jac_e), (hess_triplets, hess_e)):
+            for collected, entry in zip(triplets, part, strict=True):
+                collected.append(entry)
 
     def assemble(n_rows: int, rows: list, cols: list, values: list) -> ca.MX:
         rows, cols = np.concatenate(rows), np.concatenate(cols)
@@ -146,12 +119,52 @@ def repeated_block_derivatives(x: ca.SX, p: ca.SX, f: ca.SX, g: ca.SX,
 
     # g in its own order: the residuals come with their Jacobian (shared subexpressions)
     g_value = ca.vertcat(*g_pieces)[np.argsort(np.concatenate(g_order)).tolist()]
-    jac_g = ca.Function("nlp_jac_g", [X, P], [g_value, assemble(n_g, j_rows, j_cols, j_values)],
+    jac_g = ca.Function("nlp_jac_g", [X, P], [g_value, assemble(n_g, *jac_triplets)],
                         ["x", "p"], ["g", "jac_g_x"])
     hess_lag = ca.Function("nlp_hess_l", [X, P, lam_f, lam_g],
-                           [assemble(n_x, h_rows, h_cols, h_values)],
+                           [assemble(n_x, *hess_triplets)],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
     return {"jac_g": jac_g, "hess_lag": hess_lag}
+
+
+def _element_part(block: RepeatedBlock, index: np.ndarray, symbols: tuple[ca.SX, ca.SX],
+                  inputs: tuple[ca.MX, ca.MX, ca.MX], parallel: tuple
+                  ) -> tuple[ca.MX, Triplets, Triplets]:
+    """One block's residuals (the vec of (n_r, E): element by element) and the (row,
+    column, value) entries of its Jacobian and of the upper triangle of its Hessian in
+    the NLP's indices (-1: an entry of no variable, or of the lower triangle).
+
+    symbols: the NLP's SX (x, p); inputs: the MX (x, p, lam_g) of jac_g and hess_lag.
+    """
+    X, P, lam_g = inputs
+    E, n_loc = block.rows.shape[0], index.shape[0]
+    v = ca.SX.sym("v", n_loc)
+    sizes = np.cumsum([0] + [a.shape[0] for a in block.arguments]).tolist()
+    residual = block.function(*ca.vertsplit(v, sizes))
+    lam = ca.SX.sym("lam", residual.numel())
+    jac = ca.jacobian(residual, v)
+    hess = ca.hessian(ca.dot(lam, residual), v)[0]
+    name = block.function.name()
+    element_jacobian = ca.Function(f"{name}_jacobian", [v], [residual, jac])
+    element_hessian = ca.Function(f"{name}_hessian", [v, lam], [hess])
+    V = ca.Function("arguments", list(symbols), [ca.vertcat(*block.arguments)])(X, P)
+    lam_e = ca.reshape(lam_g[block.rows.reshape(-1).tolist()], residual.numel(), E)
+    r_e, J_e = element_jacobian.map(E, *parallel)(V)
+    H_e = element_hessian.map(E, *parallel)(V, lam_e)
+    # The mapped outputs are horzcats: element e's nonzeros follow element e - 1's.
+    elements = np.arange(E)[:, None]
+    jr, jc = (np.asarray(a)[None, :] for a in jac.sparsity().get_triplet())
+    col = index[jc, elements]  # local argument a of element e is x[index[a, e]]
+    row = block.rows[elements, jr]
+    keep = col >= 0
+    jacobian = (np.where(keep, row, -1).ravel(), np.where(keep, col, -1).ravel(),
+                _nonzeros(J_e))
+    # The upper triangle of P^T H P: (a, b) with index[a] <= index[b]; duplicates add up
+    hr, hc = (np.asarray(a)[None, :] for a in hess.sparsity().get_triplet())
+    ga, gb = index[hr, elements], index[hc, elements]
+    keep = (ga >= 0) & (gb >= 0) & (ga <= gb)
+    hessian = (np.where(keep, ga, -1).ravel(), np.where(keep, gb, -1).ravel(), _nonzeros(H_e))
+    return ca.vec(r_e), jacobian, hessian
 
 
 def _check_values(x: ca.SX, p: ca.SX, g: ca.SX, blocks: tuple[RepeatedBlock, ...]) -> None:
