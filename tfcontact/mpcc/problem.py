@@ -104,8 +104,7 @@ class Mpcc:
             raise InvalidInput(
                 f"`G` and `H` must have equal length, got {self.G.numel()} and {self.H.numel()}"
             )
-        n_g_rows = [int(b.rows.max(initial=-1)) for b in self.repeated]
-        if any(r >= n_g for r in n_g_rows):
+        if any(int(block.rows.max(initial=-1)) >= n_g for block in self.repeated):
             raise InvalidInput(f"a RepeatedBlock names rows beyond g's {n_g}")
         if np.any(self.lbw > self.ubw):
             i = int(np.argmax(self.lbw > self.ubw))
