@@ -7,10 +7,8 @@ changes one setting of `hopper_options()` per variant.
 
 from __future__ import annotations
 
-import importlib.util
 import math
 from dataclasses import fields
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,21 +16,12 @@ import pytest
 from tfcontact.scenes.hopper import hopper_options, hopper_task
 from tfcontact.scenes.particles import G, point_mass
 
-SCRIPTS = Path(__file__).resolve().parent.parent / "scripts"
 
-
-def _load(name: str):
-    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def test_bench_replays_a_plan_against_its_end_state():
+def test_bench_replays_a_plan_against_its_end_state(load_script):
     """The bench's check of nosnoc_py's plan (`replay_controls` on the plan's clocks and
     controls, compared at T): a particle thrown sideways at 2 m/s from 1 m sticks where it
     lands (mu = 0.5); a 1 N push from the clock 0.5 s on is below mu m g."""
-    bench = _load("bench_hopper")
+    bench = load_script("bench_hopper")
     cls = point_mass(2, mu=0.5, controlled=True)
     exact = np.array([2.0 * math.sqrt(2.0 / G), 0.0, 0.0, 0.0])
     args = (cls, np.array([0.0, 1.0, 2.0, 0.0]), np.array([0.0, 0.5, 1.0]),
@@ -46,8 +35,8 @@ def test_bench_replays_a_plan_against_its_end_state():
     assert bench._replay_verdict(float("nan"), 5e-2) == "replay stopped"
 
 
-def test_settings_variants_change_one_setting_each():
-    settings = _load("bench_hopper_settings")
+def test_settings_variants_change_one_setting_each(load_script):
+    settings = load_script("bench_hopper_settings")
     default = hopper_options("short")
     names = [f.name for f in fields(default)]
     for name, variant in settings.VARIANTS.items():

@@ -179,19 +179,11 @@ def test_time_freezing_sliding_modes_are_the_car_modes(w, mode):
 
 
 @pytest.mark.slow
-def test_time_freezing_fesd_plan_switches_at_the_thresholds():
+def test_time_freezing_fesd_plan_switches_at_the_thresholds(load_script):
     """The script's multistart (scripts/car_hysteresis.py): single starts land in local
     minima (11.0, 12.89 or 13.0 s) depending even on round-off, so one start alone would
     test luck, not the method."""
-    import importlib.util
-    import sys
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parent.parent / "scripts" / "car_hysteresis.py"
-    spec = importlib.util.spec_from_file_location("car_hysteresis", path)
-    script = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = script  # its dataclasses look their module up
-    spec.loader.exec_module(script)
+    script = load_script("car_hysteresis")
 
     n = 10
     run = script.solve_fesd(n, stop_below=152 / 15 + 1e-3)

@@ -7,9 +7,6 @@ a hop over the hole by itself.
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -48,13 +45,10 @@ def test_hole_values_sign():
     assert mp.hole_values(stand(1.2))[0, 0] > 0
 
 
-def test_script_defaults_are_the_cli_plan(monkeypatch):
+def test_script_defaults_are_the_cli_plan(monkeypatch, load_script):
     """`scripts/monoped.py` without flags (and with `--quick`) solves the same task with the
     same settings as `tfcontact plan monoped` (`--task reduced`): one source of both."""
-    path = Path(__file__).resolve().parents[1] / "scripts" / "monoped.py"
-    spec = importlib.util.spec_from_file_location("monoped_script", path)
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
+    script = load_script("monoped")
     seen = {}
 
     def stop(problem, options, verbose):  # capture instead of solving
