@@ -250,28 +250,16 @@ def run_fesd(n: int, problem: CarProblem, settings: FesdSettings = FESD) -> Row:
     """The multistart's best plan, checked by the event-located simulation; CPU time and
     work summed over all starts."""
     run = solve_fesd(n, problem, settings)
-    system, res, cpu, wall = run.system, run.best, run.cpu, run.wall
-    nlps, iterations, tried = run.nlps, run.iterations, run.tried
-    best = None if res is None else (run.t_final, res)
-    if best is None:
-        return Row("time-freezing FESD", n, np.nan, cpu, wall, f"{nlps} NLPs, {iterations} it.",
-                   np.nan, np.nan, np.nan, "no start converged; " + "; ".join(tried))
-    t_final, res = best
-    xi = res.x_intervals
-    sim = simulate_car(res.u[:, 0], xi[:, system.clock_index], problem)
+    work, tried = f"{run.nlps} NLPs, {run.iterations} IPOPT it.", "; ".join(run.tried)
+    if run.best is None:
+        return Row("time-freezing FESD", n, np.nan, run.cpu, run.wall, work,
+                   np.nan, np.nan, np.nan, "no start converged; " + tried)
+    res, system = run.best, run.system
+    sim = simulate_car(res.u[:, 0], res.x_intervals[:, system.clock_index], problem)
     up, down = fesd_switch_velocities(res.x, system.memory_index)
-    return Row(
-        method="time-freezing FESD",
-        n=n,
-        final_time=t_final,
-        cpu_time=cpu,
-        wall_time=wall,
-        work=f"{nlps} NLPs, {iterations} IPOPT it.",
-        terminal_error=sim.terminal_error,
-        switch_up=up,
-        switch_down=down,
-        status="; ".join(tried),
-    )
+    return Row(method="time-freezing FESD", n=n, final_time=run.t_final, cpu_time=run.cpu,
+               wall_time=run.wall, work=work, terminal_error=sim.terminal_error,
+               switch_up=up, switch_down=down, status=tried)
 
 
 def main(argv: list[str] | None = None) -> None:

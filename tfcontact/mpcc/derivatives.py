@@ -7,7 +7,7 @@ differentiates every copy. Here the element is differentiated once, as a functio
 own arguments, mapped over the elements and scattered into the NLP's sparse Jacobian and
 Hessian; CasADi differentiates only the remaining constraints and the objective. The
 values are the same up to round-off (sums in another order). On the hopper bench NLP
-(60 elements) the derivatives build in 0.1 s instead of 1.6 s (the whole NLP in 0.8 s
+(60 elements) the derivatives build in 0.1 s instead of 1.9 s (the whole NLP in 0.8 s
 instead of 2.3 s) and evaluate as fast, faster with two threads. Opt-in:
 `Ipopt(element_derivatives=True)`.
 """

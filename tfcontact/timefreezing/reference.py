@@ -447,21 +447,14 @@ def _simulate_elastic_contacts(
     gaps = ca.vertcat(*[c.gap for c in cls.contacts])
     terms = ca.Function("reference_terms", [q, v, u],
                         [cls.acceleration, cls.solve_mass(normals), normals, gaps])
-    # The integrator's right-hand side and events need only a(q, v, u) and gaps(q):
-    # functions of their own skip M^-1 n and the conversions of unused outputs.
-    acceleration = ca.Function("reference_acceleration", [q, v, u], [cls.acceleration])
-    gap_values = ca.Function("reference_gaps", [q], [gaps])
     restitution = np.array([c.restitution for c in cls.contacts])
     calls = 0
 
-    def count() -> None:
+    def evaluate(x: np.ndarray, u_now: np.ndarray):
         nonlocal calls
         calls += 1
         if calls > max_rhs_evaluations:
             raise _BudgetExceeded
-
-    def evaluate(x: np.ndarray, u_now: np.ndarray):
-        count()
         return [np.asarray(r) for r in terms(x[:n], x[n:], u_now)]
 
     gap0 = evaluate(x0, control(0.0))[3].ravel()
@@ -499,8 +492,7 @@ def _simulate_elastic_contacts(
 
     def touchdown(i: int, u_now: Callable[[float], np.ndarray]):
         def event(t: float, x: np.ndarray) -> float:
-            count()
-            return float(gap_values(x[:n])[i])
+            return float(evaluate(x, u_now(t))[3].ravel()[i])
         event.terminal, event.direction = True, -1
         return event
 
@@ -531,9 +523,7 @@ def _simulate_elastic_contacts(
             t_stop, segment_control = _segment(control, stops, t_cur)
 
             def rhs(t: float, x: np.ndarray, u_now=segment_control) -> np.ndarray:
-                count()
-                return np.concatenate(
-                    [x[n:], np.asarray(acceleration(x[:n], x[n:], u_now(t))).ravel()])
+                return np.concatenate([x[n:], evaluate(x, u_now(t))[0].ravel()])
 
             step = first_step(t_cur, x_cur)
             if step is not None:
