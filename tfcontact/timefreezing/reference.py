@@ -478,8 +478,8 @@ def _simulate_elastic_contacts(
     q, v, u = cls.q, cls.v, cls.u
     normals = ca.horzcat(*[c.normal for c in cls.contacts])
     gaps = ca.vertcat(*[c.gap for c in cls.contacts])
-    terms = ca.Function("reference_terms", [q, v, u],
-                        [cls.acceleration, cls.solve_mass(normals), normals, gaps])
+    terms = _StackedFunction("reference_terms", [ca.vertcat(q, v), u],
+                             [cls.acceleration, cls.solve_mass(normals), normals, gaps])
     restitution = np.array([c.restitution for c in cls.contacts])
     calls = 0
 
@@ -488,7 +488,7 @@ def _simulate_elastic_contacts(
         calls += 1
         if calls > max_rhs_evaluations:
             raise _BudgetExceeded
-        return [np.asarray(r) for r in terms(x[:n], x[n:], u_now)]
+        return terms.split(terms(x, u_now))
 
     gap0 = evaluate(x0, control(0.0))[3].ravel()
     if np.any(gap0 < -start_gap_tolerance):
