@@ -611,6 +611,27 @@ def test_reference_simulator_several_contacts_need_them_frictionless_and_elastic
         simulate_impacts(slow, [0, -0.5, 0, 0], lambda t: np.zeros(2), 20.0)
 
 
+def test_reference_terms_through_the_call_buffer_equal_the_function_call():
+    """The simulator's buffered evaluation (stacked, densified, column-major outputs; an
+    empty input) gives each output of `Function.__call__` in its shape, and a later call
+    does not overwrite an earlier result."""
+    from tfcontact.timefreezing.reference import _StackedFunction
+
+    x, u = ca.SX.sym("x", 3), ca.SX.sym("u", 0)
+    sparse = ca.SX(3, 2)
+    sparse[0, 1], sparse[2, 0] = x[0] * x[1], ca.sin(x[2])
+    outputs = [ca.vertcat(x[0] ** 2, x[1] - x[2]), sparse, ca.SX(1.5)]
+    stacked = _StackedFunction("terms", [x, u], outputs)
+    direct = ca.Function("direct", [x, u], outputs)
+    first = stacked([0.3, -1.2, 0.7], np.zeros(0))
+    second = stacked.split(stacked([2.0, 0.5, -0.4], np.zeros(0)))
+    for value, point in ((stacked.split(first), [0.3, -1.2, 0.7]), (second, [2.0, 0.5, -0.4])):
+        expected = [np.asarray(ca.densify(r)) for r in direct(point, np.zeros(0))]
+        assert [v.shape for v in value] == [(2, 1), (3, 2), (1, 1)]
+        for got, want in zip(value, expected, strict=True):
+            np.testing.assert_array_equal(got, want)
+
+
 # ----------------------------------------------------------------------------- FESD simulations
 #
 # The whole chain: builder -> FESD simulator (Radau IIA) -> physical time. The inelastic
