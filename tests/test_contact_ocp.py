@@ -6,8 +6,8 @@ import pytest
 
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp import ContactProblem, ContactSolverOptions
-from tfcontact.ocp.contact import _perturbed, _segments, _transcribe
-from tfcontact.scenes.particles import point_mass
+from tfcontact.ocp.contact import _perturbed, _segments, _transcribe, painleve_note
+from tfcontact.scenes.particles import painleve_rod, point_mass
 from tfcontact.timefreezing import time_freeze, with_speed_of_time
 
 
@@ -99,3 +99,20 @@ def test_local_defect_segments_run_past_boundaries_without_a_physical_state():
     # an interval the clock does not move in adds nothing, inside or at the end
     assert _segments(np.array([0.0, 1.0, 1.0, 2.0]), running) == [(0, 1), (1, 3)]
     assert _segments(np.array([0.0, 1.0, 2.0, 2.0]), running) == [(0, 1), (1, 3)]
+
+
+def test_painleve_note_names_the_ill_posed_closed_samples():
+    """The verification's note counts the closed samples inside the Painleve band (rod,
+    mu = 2: theta = 1 rad is inside, 0.2 rad is not); open samples and well-posed
+    contacts give no note."""
+    rod = painleve_rod(mu=2.0)
+    q = np.array([[0.0, 0.5 * np.sin(a), a] for a in (0.2, 1.0, 1.0, 1.1)])
+    closed = np.array([[True], [True], [False], [True]])
+    note = painleve_note(rod, q, closed)
+    assert note is not None and "contact 'end' at 2 of 3 closed samples" in note
+    margin_at_1 = (1 + 3 * np.cos(1.0) ** 2 - 6 * np.sin(1.0) * np.cos(1.0)) / 2
+    margin_at_11 = (1 + 3 * np.cos(1.1) ** 2 - 6 * np.sin(1.1) * np.cos(1.1)) / 2
+    assert f"down to {min(margin_at_1, margin_at_11):.3g}" in note
+    assert painleve_note(rod, q[:1], closed[:1]) is None
+    assert painleve_note(rod, q, np.zeros_like(closed)) is None
+    assert painleve_note(painleve_rod(mu=0.5), q, closed) is None

@@ -20,6 +20,7 @@ from tfcontact.scenes.particles import (
     G,
     bounce_times,
     drop_time,
+    painleve_rod,
     point_mass,
     rod,
 )
@@ -1017,3 +1018,19 @@ def test_leaning_stick_impact_agrees_with_the_time_freezing_simulation(mu, v_t):
     assert impact.time == pytest.approx(expected.time, abs=1e-6)
     # measured 3e-5: the clock creeps while frozen (PENETRATION_TOL's reason)
     np.testing.assert_allclose(impact.post[3:6], expected.post[3:], atol=1e-4)
+
+
+def test_painleve_margins_of_the_rod_are_the_closed_form():
+    """n^T M^-1 n - mu |B^T M^-1 n| = (1 + 3 cos^2 - 3 mu |sin cos|) / m for Painleve's rod:
+    negative (ill-posed) only for mu > 4/3, in a band of angles; 1 / m for a frictionless
+    end."""
+    angles = np.linspace(0.05, 1.5, 12)
+    for mu in (0.5, 2.0):
+        margins = painleve_rod(mu=mu).function("painleve_margins")
+        got = np.array([float(margins([0.0, 1.0, a])) for a in angles])
+        c, s = np.cos(angles), np.sin(angles)
+        np.testing.assert_allclose(got, (1 + 3 * c**2 - 3 * mu * np.abs(s * c)) / 2.0,
+                                   rtol=1e-12)
+        assert (got < 0).any() == (mu == 2.0)
+    frictionless = painleve_rod(mu=0.0).function("painleve_margins")
+    assert float(frictionless([0.0, 1.0, 0.7])) == pytest.approx((1 + 3 * np.cos(0.7) ** 2) / 2)

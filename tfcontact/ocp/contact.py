@@ -44,6 +44,7 @@ from tfcontact.ocp.verify import (
 )
 from tfcontact.timefreezing import (
     FROZEN_RATE_TOL,
+    ComplementarityLagrangianSystem,
     PhysicalTrajectory,
     TimeFreezingSystem,
     replay_controls,
@@ -656,6 +657,9 @@ def verify_plan(
                                for qk, vk in zip(q_samples, v_samples, strict=True)])
             slips.append(slip_i * closed[:, i : i + 1])
     slip = np.hstack(slips).reshape(*samples.shape[:2], sum(c.n_tangents for c in cls.contacts))
+    painleve = painleve_note(cls, q_samples, closed)
+    if painleve:
+        notes.append(painleve)
     dissipation, n_slipping = maximal_dissipation_violation(
         impulses, slip, [c.mu for c in cls.contacts], [c.n_tangents for c in cls.contacts])
     notes.append(f"maximal dissipation checked on {n_slipping} slipping element-contacts "
@@ -685,6 +689,29 @@ def verify_plan(
         defect_sum=defect_sum, open_loop_amplification=amplification,
         open_loop_unstable=bool(end_state_ok and deviation > options.end_state_tolerance),
     )
+
+
+def painleve_note(cls: ComplementarityLagrangianSystem, q_samples: np.ndarray,
+                  closed: np.ndarray) -> str | None:
+    """A note on the closed-contact samples (`q_samples` (S, n_q), `closed` (S, n_c)) where
+    a frictional contact is ill-posed (`cls.function("painleve_margins")` < 0), or None.
+    There a slip has no unique contact force: the plan's forces are not Coulomb's, and the
+    exact replay may jam."""
+    frictional = [i for i, c in enumerate(cls.contacts) if c.has_friction and closed[:, i].any()]
+    if not frictional:
+        return None
+    margins = np.asarray(cls.function("painleve_margins")(q_samples.T)).T
+    parts = []
+    for i in frictional:
+        inside = closed[:, i] & (margins[:, i] < 0)
+        if inside.any():
+            parts.append(f"contact {cls.contacts[i].name!r} at {int(inside.sum())} of "
+                         f"{int(closed[:, i].sum())} closed samples (down to "
+                         f"{margins[inside, i].min():.3g})")
+    if not parts:
+        return None
+    return ("Painleve: the frictional contact is ill-posed (n^T M^-1 n - mu ||B^T M^-1 n|| "
+            "< 0) for " + "; ".join(parts) + ": a slip there has no unique contact force")
 
 
 def _end_state_check(problem: ContactProblem, system: TimeFreezingSystem, ocp: OcpResult,

@@ -83,6 +83,29 @@ def rod(
     )
 
 
+def painleve_rod(
+    *, mu: float, length: float = 1.0, mass: float = 2.0, a_n: float = 100.0,
+    gravity: float = G,
+) -> ComplementarityLagrangianSystem:
+    """Painleve's rod: q = (x, z, theta), touching the ground with its lower end at
+    z - (L/2) sin(theta), Coulomb friction mu, M = diag(m, m, m L^2/12), inelastic.
+
+    Its `painleve_margins` are (1 + 3 cos^2 theta - 3 mu |sin theta cos theta|) / m: for
+    mu > 4/3 a band of angles makes the frictional contact ill-posed.
+    """
+    q = ca.SX.sym("q", 3)
+    half = length / 2
+    end_x = q[0] - half * ca.cos(q[2])
+    contact = Contact(gap=q[1] - half * ca.sin(q[2]), tangents=ca.jacobian(end_x, q).T,
+                      mu=mu, a_n=a_n, name="end")
+    return ComplementarityLagrangianSystem(
+        q=q, v=ca.SX.sym("v", 3), u=ca.SX(0, 1),
+        mass_matrix=ca.SX(ca.DM(np.diag([mass, mass, mass * length**2 / 12]))),
+        forces=ca.vertcat(0, -mass * gravity, 0), contacts=(contact,),
+        q_names=("x", "z", "theta"), v_names=("v_x", "v_z", "omega"),
+    )
+
+
 def drop_time(height: float, gravity: float = G) -> float:
     """Free-fall time sqrt(2 h / g) [s] from rest at height h [m]."""
     return math.sqrt(2.0 * height / gravity)

@@ -285,7 +285,12 @@ class ComplementarityLagrangianSystem:
 
     def function(self, name: str) -> ca.Function:
         """Numeric CasADi functions (cached): `mass` M(q), `forces` f_v(q, v, u),
-        `gaps` (n_c,), `normals` (n_v, n_c), `tangents_i` B_i(q)."""
+        `gaps` (n_c,), `normals` (n_v, n_c), `tangents_i` B_i(q), `painleve_margins`
+        (n_c,): n_i^T M^-1 n_i - mu_i ||B_i^T M^-1 n_i||, the normal acceleration per unit
+        normal force of contact i slipping in its worst direction. Where it is negative
+        the frictional contact is ill-posed (Painleve): a slip there has no unique force,
+        and time-freezing's auxiliary dynamics M^-1 (n - mu B d) a_n drive the contact
+        further in instead of out."""
         cache = self._functions
         if name not in cache:
             q, v, u = self.q, self.v, self.u
@@ -300,6 +305,15 @@ class ComplementarityLagrangianSystem:
                 cache[name] = ca.Function(
                     "normals", [q], [ca.horzcat(*[c.normal for c in self.contacts])]
                 )
+            elif name == "painleve_margins":
+                margins = []
+                for c in self.contacts:
+                    minv_n = self.solve_mass(c.normal)
+                    margin = ca.mtimes(c.normal.T, minv_n)
+                    if c.has_friction:
+                        margin -= c.mu * ca.norm_2(ca.mtimes(c.tangents.T, minv_n))
+                    margins.append(margin)
+                cache[name] = ca.Function(name, [q], [ca.vertcat(*margins)])
             elif name.startswith("tangents_"):
                 i = int(name.split("_")[1])
                 cache[name] = ca.Function(name, [q], [self.contacts[i].tangents])
