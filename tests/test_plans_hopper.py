@@ -121,9 +121,9 @@ def test_long_task_hops_twice_reaches_the_goal_and_keeps_to_the_dynamics(long_pl
     "replays end 0.011 to 1.0 away (local defects amplified 100-fold over five or six "
     "impacts), and three of those four plans pass (one within 1.1e-2 of its replay, two "
     "as open-loop unstable plans on their local defects, sums 8.9e-3 and 9.6e-3); the "
-    "fourth (+2e-9) sums 0.14, with two "
-    "impacts 4.7 ms apart around a control boundary, and two restarts did not rescue it "
-    "(benchmarks/hopper_bench.md, sixth and ninth sessions)",
+    "fourth (+2e-9) sums 0.14, with two impacts 4.7 ms apart around a control boundary, "
+    "and two restarts did not rescue it (benchmarks/hopper_bench.md, sixth and ninth "
+    "sessions)",
 )
 def test_long_task_passes_the_verification(long_plan):
     code, sidecar, _ = long_plan
