@@ -147,8 +147,8 @@ class _BudgetExceeded(Exception):
 
 
 class _StackedFunction:
-    """A CasADi function of dense vectors whose outputs come stacked in one numpy vector,
-    evaluated through CasADi's call buffer: about 3 us a call against 50-100 us for
+    """A CasADi function of dense vectors, its outputs stacked in one dense vector and
+    evaluated through CasADi's call buffer: 3-8 us a call against 50-100 us for
     `Function.__call__` and its DM conversions, and a simulation makes thousands."""
 
     def __init__(self, name: str, inputs: list[ca.SX], outputs: list[ca.SX]):
@@ -162,14 +162,12 @@ class _StackedFunction:
             self._buffer.set_arg(i, memoryview(array))
         self._buffer.set_res(0, memoryview(self._output))
 
-    def __call__(self, *values: np.ndarray) -> np.ndarray:
+    def __call__(self, *values: np.ndarray) -> list[np.ndarray]:
+        """The outputs, dense in their shapes (a copy: the buffer is reused)."""
         for array, value in zip(self._inputs, values, strict=True):
             array[:] = value
         self._evaluate()
-        return self._output.copy()
-
-    def split(self, stacked: np.ndarray) -> list[np.ndarray]:
-        """The outputs, in their shapes, from one stacked value."""
+        stacked = self._output.copy()
         pieces, start = [], 0
         for rows, cols in self.shapes:
             pieces.append(stacked[start:start + rows * cols].reshape((rows, cols), order="F"))
@@ -196,15 +194,9 @@ class _Model:
         drift_t = ca.mtimes(ca.jacobian(vt, q), v) if self.n_t else ca.SX(0, 1)
         jac = ca.horzcat(normal, tangents)
         minv_jac = cls.solve_mass(jac)
-        x = ca.vertcat(q, v)
         self._terms = _StackedFunction(
-            "reference_terms", [x, u],
+            "reference_terms", [ca.vertcat(q, v), u],
             [cls.acceleration, minv_jac, jac, ca.vertcat(drift_n, drift_t), contact.gap])
-        # Flight needs only a(q, v, u) and the gap: functions of their own skip M^-1 J
-        # and the drifts (most calls are in flight).
-        self._acceleration = _StackedFunction("reference_acceleration", [x, u],
-                                              [cls.acceleration])
-        self._gap = _StackedFunction("reference_gap", [q], [contact.gap])
         self.calls = 0
         self.max_calls = math.inf
 
@@ -213,17 +205,10 @@ class _Model:
         if self.calls > self.max_calls:
             raise _BudgetExceeded
 
-    def free_acceleration(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        self._count()
-        return self._acceleration(x, u)
-
-    def gap(self, x: np.ndarray) -> float:
-        self._count()
-        return float(self._gap(x[: self.n])[0])
-
     def terms(self, x: np.ndarray, u: np.ndarray):
+        """(a_free, M^-1 J, J, drift, gap) at x = (q, v) under u; J = [n B]."""
         self._count()
-        a_free, minv_jac, jac, drift, gap = self._terms.split(self._terms(x, u))
+        a_free, minv_jac, jac, drift, gap = self._terms(x, u)
         return a_free.ravel(), minv_jac, jac, drift.ravel(), float(gap[0, 0])
 
 
@@ -488,7 +473,7 @@ def _simulate_elastic_contacts(
         calls += 1
         if calls > max_rhs_evaluations:
             raise _BudgetExceeded
-        return terms.split(terms(x, u_now))
+        return terms(x, u_now)
 
     gap0 = evaluate(x0, control(0.0))[3].ravel()
     if np.any(gap0 < -start_gap_tolerance):
@@ -668,10 +653,10 @@ def _phase(model: _Model, mode: str, direction, control):
 
     if mode == FREE:
         def rhs(t, x):
-            return np.concatenate([x[n:], model.free_acceleration(x, control(t))])
+            return np.concatenate([x[n:], model.terms(x, control(t))[0]])
 
         def touchdown(t, x):
-            return model.gap(x)
+            return model.terms(x, control(t))[4]
 
         touchdown.terminal, touchdown.direction = True, -1
         return rhs, [touchdown]
