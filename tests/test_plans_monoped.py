@@ -213,7 +213,7 @@ def test_an_open_loop_deviation_the_amplification_does_not_explain_fails(standin
 
     mp, options, result = standing_plan
     monkeypatch.setattr(contact, "_open_loop_sensitivity",
-                        lambda problem, system, ocp, end, kick: kick)
+                        lambda plan, end, kick: kick)
     v = contact.verify_plan(mp.problem, result.system, result.ocp, result.physical, options)
     assert v.defect_sum < 1e-3 and v.open_loop_amplification == pytest.approx(1.0)
     assert not v.open_loop_unstable and not v.passed

@@ -428,32 +428,60 @@ def _state_indices(system: TimeFreezingSystem) -> list[int]:
             + list(range(system.v_index.start, system.v_index.stop)))
 
 
-def _reference_deviation(problem: ContactProblem, system: TimeFreezingSystem,
-                         ocp: OcpResult) -> tuple[float, str, np.ndarray]:
-    """End-state deviation of the plan from the event-detecting reference simulation, the
-    method's description and the reference's state at T.
+@dataclass(frozen=True, eq=False)
+class ReplayedPlan:
+    """What the replay checks read of a plan: its physical controls on a grid of clock
+    values, its states there and its start.
 
-    The physical controls are piecewise constant between the clock values at the
-    control-interval boundaries (k T / N with the stagewise clock constraint).
+    Attributes:
+        cls: the original system (impacts, friction).
+        x0: the start state (q0, v0).
+        clocks: physical times of the control-interval boundaries, (N + 1,).
+        states: the plan's (q, v) at those boundaries, (N + 1, 2 n_q).
+        controls: the physical controls per interval, (N, n_u).
+        horizon: the physical horizon T [s].
     """
-    x0 = np.concatenate([problem.q0, problem.v0])
-    reference = _replay_plan(system, ocp, x0, problem.horizon)
+
+    cls: ComplementarityLagrangianSystem
+    x0: np.ndarray
+    clocks: np.ndarray
+    states: np.ndarray
+    controls: np.ndarray
+    horizon: float
+
+    def replay(self, x0: np.ndarray | None = None):
+        """The controls replayed by the event-detecting reference from x0 (default: the
+        plan's start)."""
+        return replay_controls(self.cls, self.x0 if x0 is None else x0, self.clocks,
+                               self.controls, self.horizon, rtol=1e-10, atol=1e-11)
+
+
+def _replayed(problem: ContactProblem, system: TimeFreezingSystem,
+              ocp: OcpResult) -> ReplayedPlan:
+    """A time-freezing plan's controls between its clock values at the control-interval
+    boundaries (k T / N with the stagewise clock constraint)."""
+    return ReplayedPlan(
+        cls=system.cls, x0=np.concatenate([problem.q0, problem.v0]),
+        clocks=ocp.x_intervals[:, system.clock_index],
+        states=ocp.x_intervals[:, _state_indices(system)],
+        controls=ocp.u[:, :system.cls.n_u], horizon=problem.horizon)
+
+
+def _reference_deviation(plan: ReplayedPlan, end_state: np.ndarray,
+                         window: float = 0.0) -> tuple[float, str, np.ndarray]:
+    """End-state deviation of the plan from the event-detecting reference simulation, the
+    method's description and the reference's state at T. An impact of the reference
+    within `window` of T counts on either side of it."""
+    reference = plan.replay()
     if reference.status != "success":
         raise SolveFailed(f"reference simulation stopped: {reference.message}", reference)
-    deviation, side = reference.deviation_at(problem.horizon,
-                                             ocp.x[-1, _state_indices(system)])
+    deviation, side = reference.deviation_at(plan.horizon, end_state, window)
     times = np.round(reference.impact_times, 4).tolist()
     method = (f"event-detecting reference (DOP853, exact impacts), {len(times)} impacts at "
               f"t = {times} s")
     if reference.end_impacts:
         method += f", and one at T (the plan ends {side or 'before'} it)"
     return deviation, method, reference.x[-1]
-
-
-def _replay_plan(system: TimeFreezingSystem, ocp: OcpResult, x0: np.ndarray, horizon: float):
-    """The plan's physical controls replayed by the event-detecting reference from x0."""
-    return replay_controls(system.cls, x0, ocp.x_intervals[:, system.clock_index],
-                           ocp.u[:, :system.cls.n_u], horizon, rtol=1e-10, atol=1e-11)
 
 
 LOCAL_DEFECT_IMPACT_WINDOW = 0.01
@@ -490,17 +518,15 @@ def _segments(clocks: np.ndarray, frozen: np.ndarray) -> list[tuple[int, int]]:
     return segments
 
 
-def _local_defects(system: TimeFreezingSystem, ocp: OcpResult, frozen: np.ndarray,
+def _local_defects(plan: ReplayedPlan, segments: list[tuple[int, int]],
                    gap_tolerance: float) -> tuple[float, ...]:
     """Per control interval: the deviation at its end of the reference restarted from the
     plan's own state at its segment's start (`_segments`) and run with the plan's
     controls; nan where the segment runs on, inf where the reference could not simulate
     it (a jam, a start it rejects)."""
-    clocks = ocp.x_intervals[:, system.clock_index]
-    states = ocp.x_intervals[:, _state_indices(system)]
-    n_u = system.cls.n_u
+    clocks, states = plan.clocks, plan.states
     defects = np.full(len(clocks) - 1, np.nan)
-    for first, end in _segments(clocks, frozen):
+    for first, end in segments:
         duration = clocks[end] - clocks[first]
         if duration <= 1e-12:
             continue  # the whole plan frozen: nothing physical to compare
@@ -508,9 +534,9 @@ def _local_defects(system: TimeFreezingSystem, ocp: OcpResult, frozen: np.ndarra
         # boundary and the reference just after it is compared on both sides.
         window = LOCAL_DEFECT_IMPACT_WINDOW * duration / (end - first)
         try:
-            local = replay_controls(system.cls, states[first],
+            local = replay_controls(plan.cls, states[first],
                                     clocks[first:end + 1] - clocks[first],
-                                    ocp.u[first:end, :n_u], float(duration + window),
+                                    plan.controls[first:end], float(duration + window),
                                     rtol=1e-10, atol=1e-11, start_gap_tolerance=gap_tolerance,
                                     max_rhs_evaluations=200_000 * (end - first))
         except TfcontactError:
@@ -522,15 +548,17 @@ def _local_defects(system: TimeFreezingSystem, ocp: OcpResult, frozen: np.ndarra
     return tuple(float(d) for d in defects)
 
 
-def _open_loop_sensitivity(problem: ContactProblem, system: TimeFreezingSystem,
-                           ocp: OcpResult, reference_end: np.ndarray, kick: float) -> float:
+def _open_loop_sensitivity(plan: ReplayedPlan, reference_end: np.ndarray,
+                           kick: float) -> float:
     """How far the replay's end state moves when every start velocity moves by +-kick
     (the larger of the two; inf if a kicked replay stops)."""
+    n_q = plan.cls.n_q
     moved = []
     for sign in (1.0, -1.0):
-        x0 = np.concatenate([problem.q0, problem.v0 + sign * kick])
+        x0 = plan.x0.copy()
+        x0[n_q:] += sign * kick
         try:
-            kicked = _replay_plan(system, ocp, x0, problem.horizon)
+            kicked = plan.replay(x0)
         except TfcontactError:
             return float("inf")
         if kicked.status != "success":
@@ -588,15 +616,18 @@ def verify_plan(
     reference_end = None
     # The finite elements where the clock runs (the others are frozen pieces).
     running = np.diff(ocp.x[:, system.clock_index]) > FROZEN_RATE_TOL * np.diff(ocp.t)
+    replayed = _replayed(problem, system, ocp)
     if options.verify_method in ("auto", "reference"):
         try:
-            deviation, method, reference_end = _reference_deviation(problem, system, ocp)
+            deviation, method, reference_end = _reference_deviation(
+                replayed, ocp.x[-1, _state_indices(system)])
         except TfcontactError as error:
             if options.verify_method == "reference":
                 raise
             notes.append(f"event-detecting reference not applicable ({error}); FESD used")
         # also where the full replay stopped (a jam): the intervals before it still tell
-        local_defects = _local_defects(system, ocp, ~running, options.gap_tolerance)
+        local_defects = _local_defects(
+            replayed, _segments(replayed.clocks, ~running), options.gap_tolerance)
     if not method:
         deviation, method = _fesd_deviation(problem, system, ocp, options, notes)
     # Gaps on the physical plan only: inside a frozen piece an elastic auxiliary spring
@@ -676,7 +707,8 @@ def verify_plan(
                   "cone": options.cone_tolerance, "dissipation": options.cone_tolerance,
                   "clock": options.clock_tolerance}
     end_state_ok, defect_sum, amplification = _end_state_check(
-        problem, system, ocp, options, deviation, local_defects, reference_end, notes)
+        replayed, options.end_state_tolerance, deviation, local_defects, reference_end,
+        notes)
     passed = (end_state_ok and min_gap >= -options.gap_tolerance
               and cone <= impulse_tolerance and dissipation <= impulse_tolerance
               and monotone and clock_error <= options.clock_tolerance)
@@ -714,20 +746,19 @@ def painleve_note(cls: ComplementarityLagrangianSystem, q_samples: np.ndarray,
             "< 0) for " + "; ".join(parts) + ": a slip there has no unique contact force")
 
 
-def _end_state_check(problem: ContactProblem, system: TimeFreezingSystem, ocp: OcpResult,
-                     options: ContactSolverOptions, deviation: float,
+def _end_state_check(plan: ReplayedPlan, tolerance: float, deviation: float,
                      local_defects: tuple[float, ...], reference_end: np.ndarray | None,
                      notes: list[str]) -> tuple[bool, float, float]:
     """(passed, sum of the local defects, open-loop amplification) of the end-state check.
 
-    The open-loop replay from x0 passes within `end_state_tolerance`. Otherwise the plan
-    still passes when the dynamics, not the plan, make the replay part from it: the local
+    The open-loop replay from x0 passes within `tolerance`. Otherwise the plan still
+    passes when the dynamics, not the plan, make the replay part from it: the local
     defects sum to within the tolerance (the replay could end at most that far away if
     the dynamics did not amplify errors), and the replay's measured sensitivity to a kick
     of its start velocities (end moved / kick), times the defects' sum, reaches the
     deviation.
     """
-    tol = options.end_state_tolerance
+    tol = tolerance
     defects = np.asarray(local_defects, dtype=float)
     checked = defects[~np.isnan(defects)]
     defect_sum = float(checked.sum()) if checked.size else float("nan")
@@ -736,7 +767,7 @@ def _end_state_check(problem: ContactProblem, system: TimeFreezingSystem, ocp: O
     if reference_end is None or not defect_sum <= tol:
         return False, defect_sum, float("nan")
     kick = SENSITIVITY_KICK * tol
-    sensitivity = _open_loop_sensitivity(problem, system, ocp, reference_end, kick)
+    sensitivity = _open_loop_sensitivity(plan, reference_end, kick)
     amplification = sensitivity / kick
     explained = amplification * defect_sum >= deviation
     notes.append(
