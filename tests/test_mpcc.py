@@ -1,3 +1,5 @@
+import dataclasses
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -116,6 +118,8 @@ def test_bad_input_is_named():
         Homotopy(kappa=1.5)
     with pytest.raises(InvalidInput, match="`sigma_0` must be positive"):
         Homotopy(sigma_0=0.0)
+    with pytest.raises(InvalidInput, match="`max_refinements` must be a non-negative integer"):
+        Homotopy(max_refinements=-1)
     with pytest.raises(InvalidInput, match="`intermediate_tol` must be a finite number >= `tol`"):
         Ipopt(tol=1e-8, intermediate_tol=1e-9)
     with pytest.raises(InvalidInput, match="`intermediate_tol`"):
@@ -131,3 +135,59 @@ def test_bad_input_is_named():
         MpccSolver(corner_mpcc(), relaxation="scholtes")
     with pytest.raises(InvalidInput, match="pass `p`|`p` has"):
         MpccSolver(corner_mpcc()).solve(p=[1.0])
+
+
+class _ShortStepsOnly(MpccSolver):
+    """A solver whose NLPs 'fail' (IPOPT's status replaced, the iterate spoilt) when sigma
+    drops by more than 20x below the last solved NLP's: a warm start that only carries
+    short steps. It records each NLP's sigma, starting point and returned iterate."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.last_solved = 1.0  # sigma_0: the first NLP solves
+        self.calls: list[tuple[float, np.ndarray, np.ndarray]] = []
+
+    def _solve_nlp(self, x, lam_g, p, sigma, intermediate):
+        start = x.copy()
+        x, lam_g, step, violation = super()._solve_nlp(x, lam_g, p, sigma, intermediate)
+        if self.last_solved / sigma > 20:
+            x = x + 0.3
+            step = dataclasses.replace(step, ipopt_status="Restoration_Failed")
+        else:
+            self.last_solved = sigma
+        self.calls.append((sigma, start, x.copy()))
+        return x, lam_g, step, violation
+
+
+def test_refinement_cuts_a_failed_step_and_warm_starts_from_the_last_solved_nlp():
+    homotopy = Homotopy(kappa=0.01, tolerance=1e-6, max_nlps=4, max_refinements=3)
+    solver = _ShortStepsOnly(corner_mpcc())
+    result = solver.solve(homotopy=homotopy)
+    assert result.status is MpccStatus.CONVERGED
+    np.testing.assert_allclose(result.w, [1.0, 0.0], atol=1e-5)
+    sigmas = [s.sigma for s in result.history]
+    # 1; 1e-2 fails, 1e-1 (midpoint) and 1e-2; 1e-4 fails, 1e-3 and 1e-4; 1e-6 fails,
+    # 1e-5 and 1e-6: three refinements, none counted against `max_nlps`
+    np.testing.assert_allclose(sigmas, [1, 1e-2, 1e-1, 1e-2, 1e-4, 1e-3, 1e-4, 1e-6, 1e-5,
+                                        1e-6], rtol=1e-12)
+    assert [s.refined for s in result.history] == [False] + [False, True, False] * 3
+    assert [s.ipopt_status == "Restoration_Failed" for s in result.history] == (
+        [False] + [True, False, False] * 3)
+    # the refined NLP starts where the last solved one ended, not at the spoilt iterate
+    np.testing.assert_array_equal(solver.calls[2][1], solver.calls[0][2])
+    np.testing.assert_array_equal(solver.calls[3][1], solver.calls[2][2])
+
+
+def test_without_refinement_a_failed_step_is_followed_from_its_iterate():
+    solver = _ShortStepsOnly(corner_mpcc())
+    result = solver.solve(homotopy=Homotopy(kappa=0.01, tolerance=1e-6, max_nlps=4))
+    assert result.status is MpccStatus.NLP_FAILED
+    assert [s.sigma for s in result.history] == pytest.approx([1, 1e-2, 1e-4, 1e-6])
+    # the plain schedule goes on from the failed NLP's (spoilt) iterate
+    np.testing.assert_array_equal(solver.calls[2][1], solver.calls[1][2])
+    # once the refinements are used up, the schedule goes on as without them
+    solver = _ShortStepsOnly(corner_mpcc())
+    result = solver.solve(homotopy=Homotopy(kappa=0.01, tolerance=1e-6, max_nlps=4,
+                                            max_refinements=1))
+    assert result.status is MpccStatus.NLP_FAILED
+    assert sum(s.refined for s in result.history) == 1

@@ -9,6 +9,7 @@ with sigma (and the MPCC's parameters p) as NLP parameters, so repeated solves
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
 import sys
@@ -36,14 +37,22 @@ class Homotopy:
         sigma_0: first relaxation parameter.
         kappa: reduction factor in (0, 1).
         tolerance: stop when max_i |G_i H_i| <= tolerance.
-        max_nlps: at most this many NLPs; by default enough for sigma to reach
-            `tolerance`, plus one.
+        max_nlps: at most this many steps of the schedule; by default enough for sigma
+            to reach `tolerance`, plus one.
+        max_refinements: if IPOPT fails on an NLP, solve again from the last solved NLP's
+            solution with sigma halfway (geometrically) between that NLP's sigma and the
+            failed one, and from there go on to the failed sigma; at most this many such
+            extra NLPs in one homotopy (they do not count against `max_nlps`). A step of
+            kappa that is too long for the warm start is thus cut instead of being taken
+            from a failed iterate. 0 (the default) keeps the plain schedule: after a
+            failure the next sigma starts from the failed NLP's last iterate.
     """
 
     sigma_0: float = 1.0
     kappa: float = 0.1
     tolerance: float = 1e-9
     max_nlps: int | None = None
+    max_refinements: int = 0
 
     def __post_init__(self) -> None:
         if not self.sigma_0 > 0:
@@ -54,6 +63,10 @@ class Homotopy:
             raise InvalidInput(f"`tolerance` must be positive, got {self.tolerance}")
         if self.max_nlps is not None and self.max_nlps < 1:
             raise InvalidInput(f"`max_nlps` must be at least 1, got {self.max_nlps}")
+        if isinstance(self.max_refinements, bool) or not isinstance(self.max_refinements, int) \
+                or self.max_refinements < 0:
+            raise InvalidInput(f"`max_refinements` must be a non-negative integer, got "
+                               f"{self.max_refinements!r}")
 
     @property
     def n_max(self) -> int:
@@ -165,7 +178,9 @@ class HomotopyStep:
     """One NLP of the homotopy. `evaluation_seconds`: the part of `seconds` spent in
     CasADi's function evaluations (objective, constraints, their derivatives); the rest
     is IPOPT's own work, mostly the KKT factorisations. `intermediate`: a stepping stone,
-    solved to `Ipopt.intermediate_tol` only."""
+    solved to `Ipopt.intermediate_tol` only. `refined`: an NLP whose sigma lies off the
+    schedule, warm started from the last solved NLP after a failure
+    (`Homotopy.max_refinements`)."""
 
     sigma: float
     iterations: int
@@ -175,6 +190,7 @@ class HomotopyStep:
     ipopt_status: str
     evaluation_seconds: float = 0.0
     intermediate: bool = False
+    refined: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -376,35 +392,53 @@ class MpccSolver:
         # reports that iterate rather than the failed one.
         solved_x: np.ndarray | None = None
         solved_lam: np.ndarray | None = None
-        for k in range(homotopy.n_max):
+        solved_sigma = math.inf
+        target = sigma  # the schedule's sigma_k; `sigma` lies above it after a refinement
+        k = refinements = 0
+        while k < homotopy.n_max:
+            refined = sigma > target * (1 + 1e-9)
             # Stepping stones (sigma above the tolerance) to `Ipopt.intermediate_tol`; one
             # that meets the tolerance anyway is solved again to `tol` at the same sigma.
             stepping_stone = (self._intermediate_solver is not None
                               and sigma > homotopy.tolerance * (1 + 1e-9))
             for intermediate in ((True, False) if stepping_stone else (False,)):
                 x, lam_g, step, violation = self._solve_nlp(x, lam_g, p, sigma, intermediate)
+                step = dataclasses.replace(step, refined=refined)
                 history.append(step)
                 residual, objective = step.residual, step.objective
                 if verbose:
-                    loose = f" (to tol {self.nlp.intermediate_tol:.0e})" if intermediate else ""
-                    print(f"  {k + 1:>3} {sigma:9.2e} {step.iterations:5d} {objective:12.5e} "
-                          f"{residual:9.2e} {step.seconds:8.3f}  {step.ipopt_status}{loose}",
-                          flush=True)
+                    notes = (f" (to tol {self.nlp.intermediate_tol:.0e})" if intermediate
+                             else "") + (" (refined step)" if refined else "")
+                    print(f"  {k + 1:>3} {sigma:9.2e} {step.iterations:5d} "
+                          f"{objective:12.5e} {residual:9.2e} {step.seconds:8.3f}  "
+                          f"{step.ipopt_status}{notes}", flush=True)
                 solved = step.ipopt_status in _IPOPT_SOLVED
                 if not (intermediate and solved and residual <= homotopy.tolerance):
                     break
             if solved:
                 status = MpccStatus.NOT_CONVERGED
-                solved_x, solved_lam = x.copy(), lam_g
+                solved_x, solved_lam, solved_sigma = x.copy(), lam_g, sigma
                 if residual <= homotopy.tolerance and not intermediate:
                     status = MpccStatus.CONVERGED
                     break
-            else:
-                # A failed relaxed NLP early in the homotopy often recovers with a smaller
-                # sigma, warm started from its own last iterate (measured: restarting from
-                # the last solved iterate instead made FESD simulation steps fail).
-                status = MpccStatus.NLP_FAILED
-            sigma *= homotopy.kappa
+                if not refined:  # the schedule's step is done
+                    k += 1
+                    target *= homotopy.kappa
+                sigma = target
+                continue
+            status = MpccStatus.NLP_FAILED
+            if refinements < homotopy.max_refinements and solved_x is not None:
+                # Cut the step: from the last solved NLP to the geometric midpoint.
+                refinements += 1
+                x, lam_g = solved_x.copy(), solved_lam
+                sigma = math.sqrt(solved_sigma * sigma)
+                continue
+            # A failed relaxed NLP early in the homotopy often recovers with a smaller
+            # sigma, warm started from its own last iterate (measured: restarting from
+            # the last solved iterate instead made FESD simulation steps fail).
+            k += 1
+            target *= homotopy.kappa
+            sigma = target
         if status is MpccStatus.NLP_FAILED and solved_x is not None:
             x, lam_g = solved_x, solved_lam
             residual, violation, objective = self.diagnostics(x[: self._n_w], p)
