@@ -93,21 +93,12 @@ def test_long_task_reports_what_it_measured(long_plan):
     assert len(verification["local_defects"]) == 30
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="which plan the homotopy reaches depends on round-off. On the earlier x86_64 "
-    "machines it converged from this start and from four starts moved by +-1e-9 and "
-    "+-2e-9 m. On an AVX-512 AMD EPYC (Zen 4) machine (2026-11-24) NLP 5 (sigma 1e-4) "
-    "ends Restoration_Failed at residual 9.996e-5 and NLP 6 at the iteration cap "
-    "(nlp_failed, 3112 iterations); restarts from guesses perturbed by 1e-4 converged to "
-    "plans that fail their replay (1.63; and a jam of the exact replay, local defects up "
-    "to 5.5e-2) (benchmarks/hopper_bench.md, tenth session)",
-)
 def test_long_task_hops_twice_reaches_the_goal_and_keeps_to_the_dynamics(long_plan):
-    """What held for the long plans measured (the earlier machines' round-off and starts
-    moved by +-1e-9 and +-2e-9 m, benchmarks/hopper_bench.md): the homotopy converges to
-    two or more hops that reach the goal; restarted at each control interval from the
-    plan's own state, the exact-impact reference ends within 0.1 of the plan's next state
+    """What held for the long plans measured (benchmarks/hopper_bench.md): the homotopy
+    converges to two or more hops that reach the goal (on an AVX-512 EPYC only with the
+    homotopy's step refinement: without it NLP 5 fails, nlp_failed); restarted at each
+    control interval from the plan's own state, the exact-impact reference ends within 0.1
+    of the plan's next state
     (measured in the sixth session: at most 6.2e-3 in four plans, 5.2e-2 in the fifth,
     where its replay lands 4 ms after the plan; plans of other settings reached 0.19 and
     1.4); gaps, friction cone, maximal dissipation and clock pass."""
@@ -140,19 +131,12 @@ def test_long_task_hops_twice_reaches_the_goal_and_keeps_to_the_dynamics(long_pl
     assert abs(traj.q[-1, 0] - task.x_end[0]) < 0.05
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="which plan the homotopy reaches depends on round-off: on the earlier x86_64 "
-    "machine it passed its open-loop replay (1.1e-2), on an AVX-512 EPYC the homotopy "
-    "ends nlp_failed; from starts moved by +-1e-9 and +-2e-9 m the "
-    "replays end 0.011 to 1.0 away (local defects amplified 100-fold over five or six "
-    "impacts), and three of those four plans pass (one within 1.1e-2 of its replay, two "
-    "as open-loop unstable plans on their local defects, sums 8.9e-3 and 9.6e-3); the "
-    "fourth (+2e-9) sums 0.14, with two impacts 4.7 ms apart around a control boundary, "
-    "and two restarts did not rescue it (benchmarks/hopper_bench.md, sixth and ninth "
-    "sessions)",
-)
 def test_long_task_passes_the_verification(long_plan):
+    """From this start the plan passes on both machines measured (1.1e-2 from its replay on
+    an x86_64 without AVX-512 and, with the step refinement, on an AVX-512 EPYC). Which plan
+    the homotopy reaches depends on round-off: from starts moved by +-1e-9 and +-2e-9 m
+    four of five passed on each machine, one failed its replay (benchmarks/hopper_bench.md,
+    sixth, ninth and eleventh sessions)."""
     code, sidecar, _ = long_plan
     assert sidecar["verification"]["passed"] is True and code == 0
 
