@@ -91,6 +91,21 @@ def test_long_task_reports_what_it_measured(long_plan):
     attempts = sidecar["solver"]["attempts"]
     assert len(attempts) == 1 and attempts[0]["status"] == sidecar["status"]
     assert len(verification["local_defects"]) == 30
+    # Every NLP is on record, refined steps marked, at most `max_refinements` of them
+    # (on an AVX-512 EPYC one: sigma = 3.2e-4 after NLP 5 failed).
+    solver = sidecar["solver"]
+    refinements = solver["settings"]["homotopy"]["max_refinements"]
+    assert refinements == 3
+    history = solver["history"]
+    assert len(history) == solver["nlp_count"] == len(solver["iterations_per_nlp"])
+    assert sum(step["refined"] for step in history) <= refinements
+    solved = [s["ipopt_status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+              for s in history]
+    for i, step in enumerate(history):
+        if step["refined"]:  # right after a failed NLP, between its sigma and the last solved
+            assert i >= 2 and not solved[i - 1]
+            last_solved = max(j for j in range(i - 1) if solved[j])
+            assert history[i - 1]["sigma"] < step["sigma"] < history[last_solved]["sigma"]
 
 
 def test_long_task_hops_twice_reaches_the_goal_and_keeps_to_the_dynamics(long_plan):

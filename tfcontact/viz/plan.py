@@ -64,7 +64,8 @@ def solver_record(result: Any) -> dict[str, Any]:
     iterations_per_nlp, complementarity_residual, timings [s] (build, solve, verify,
     total, summed over attempts), settings (discretisation, relaxation, homotopy, IPOPT,
     attempts, horizons, N, speed of time bounds), history (one dict per homotopy step:
-    sigma, iterations, objective, residual, seconds, ipopt_status, evaluation_seconds) and
+    sigma, iterations, objective, residual, seconds, ipopt_status, evaluation_seconds,
+    intermediate, refined) and
     attempts (one dict per solve: seed, status, iterations, solve_time, verify_time,
     end_state_deviation).
     """
