@@ -151,7 +151,7 @@ def test_long_task_passes_the_verification(long_plan):
     an x86_64 without AVX-512 and, with the step refinement, on an AVX-512 EPYC). Which plan
     the homotopy reaches depends on round-off: from starts moved by +-1e-9 and +-2e-9 m
     four of five passed on each machine, one failed its replay (benchmarks/hopper_bench.md,
-    sixth, ninth and eleventh sessions)."""
+    sixth and ninth sessions, 2026-11-25)."""
     code, sidecar, _ = long_plan
     assert sidecar["verification"]["passed"] is True and code == 0
 
