@@ -1,0 +1,571 @@
+"""PROTOTYPE, not part of the tfcontact package and not tested: the code of the monoped
+experiments in benchmarks/monoped_settings.md (sections of 2026-11-24 and 2026-11-25),
+kept so that they can be rerun and the idea taken further. Run `run.py` beside it.
+
+Mode-fixed re-solve ("polish"): the exact hybrid dynamics along the contact sequence a
+time-freezing plan found. The homotopy of `solve_contact` discovers when the contact
+closes, slips and opens; its relaxed plan may hover above the ground while it pushes, sink
+into it, or cross a fast flight with a coarse element. `polish_contact` keeps a sequence
+of phases and re-solves the OCP as a smooth NLP with the original system's dynamics:
+
+* stick: M a = f + n lambda_n + B lambda_t with n^T a + (dn/dt)^T v = -(2 alpha v_n +
+  alpha^2 gap) and B^T a + (dB/dt)^T v = -alpha v_t (index-reduced, Baumgarte
+  stabilised); lambda_n >= 0, |lambda_t| <= c mu lambda_n;
+* slip with sign s ("slip+", "slip-"): M a = f + (n - s mu B) lambda_n, the same normal
+  row; lambda_n >= 0, s v_t >= 0, W_nn - s mu W_nt >= 1e-2 (a unique normal force);
+* flight: M a = f, gap >= 0;
+* stick -> slip where lambda_t = -s mu lambda_n; stick or slip -> flight where
+  lambda_n = 0 (a foot lifts off through slip: from stick, lambda_n = 0 with the cone
+  row at the same node would force lambda_t = 0 too);
+* touchdown into stick: gap = 0 and the reference's impulse flow stopping the slip before
+  the normal velocity (|v_t| r_n <= -v_n r_t, r_n = W_nn - s mu W_nt, r_t = mu W_tt -
+  s W_tn, then |W_tn| <= mu W_tt); the post-impact state has J v+ = 0.
+
+Controls are piecewise constant on the fixed grid k T / N; each control interval is cut at
+the switches inside it and every piece integrated by RK4 (`substeps` per interval, steps
+at most 1.5 T / (N substeps)), multiple shooting. Optional Painleve margin
+W_nn -+ mu W_nt >= delta at contact nodes. The result is checked like a time-freezing plan
+(replay, local defects, kicked sensitivity).
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from tfcontact.errors import InvalidInput, TfcontactError, positive_int
+from tfcontact.ocp.contact import (
+    LOCAL_DEFECT_IMPACT_WINDOW,
+    ContactProblem,
+    ContactResult,
+    ReplayedPlan,
+    _end_state_check,
+    _local_defects,
+    _reference_deviation,
+)
+from tfcontact.ocp.verify import Verification
+
+STICK, FLIGHT = "stick", "flight"
+
+
+@dataclass(frozen=True)
+class PolishOptions:
+    """Settings of `polish_contact`.
+
+    Args:
+        substeps: RK4 steps per control interval (a piece of an interval gets its share,
+            at least 2).
+        cone_margins: the continuation of the stick cone |lambda_t| <= c mu lambda_n, each
+            NLP warm started from the last (measured on the reduced monoped: from the
+            relaxed plan c = 0.95 alone ended infeasible, c = 1 then 0.95 converged).
+        flight_gap: a relaxed plan's contact counts as open above this gap [m] ...
+        contact_gap: ... and as closed again below this one [m].
+        switch_margin: phase switches keep this fraction of a control interval from its
+            boundaries (no zero-length pieces).
+        tol, max_iter: IPOPT's.
+        end_state_tolerance, gap_tolerance, cone_tolerance: the verification's.
+    """
+
+    substeps: int = 16
+    baumgarte: float = 20.0
+    painleve_margin: float = 0.05
+    fixed_grid: bool = True
+    cone_margins: tuple[float, ...] = (1.0, 0.95)
+    flight_gap: float = 5e-3
+    contact_gap: float = 1e-3
+    switch_margin: float = 1e-3
+    tol: float = 1e-9
+    max_iter: int = 3000
+    end_state_tolerance: float = 5e-2
+    gap_tolerance: float = 1e-3
+    cone_tolerance: float = 1e-2
+
+    def __post_init__(self) -> None:
+        positive_int(self.substeps, "substeps")
+        positive_int(self.max_iter, "max_iter")
+        if not self.cone_margins or not all(0 < c <= 1 for c in self.cone_margins):
+            raise InvalidInput(f"`cone_margins` must be numbers in (0, 1], got "
+                               f"{self.cone_margins!r}")
+        if not 0 < self.contact_gap < self.flight_gap:
+            raise InvalidInput(f"need 0 < contact_gap < flight_gap, got {self.contact_gap}, "
+                               f"{self.flight_gap}")
+        if not 0 < self.switch_margin < 0.5:
+            raise InvalidInput(f"`switch_margin` must lie in (0, 0.5), got "
+                               f"{self.switch_margin}")
+        for name in ("tol", "end_state_tolerance", "gap_tolerance", "cone_tolerance"):
+            if not getattr(self, name) > 0:
+                raise InvalidInput(f"`{name}` must be positive, got {getattr(self, name)}")
+
+
+@dataclass(frozen=True)
+class Phase:
+    """One phase of a contact sequence: `mode` ("stick" or "flight") from `start` to
+    `end` [s]."""
+
+    mode: str
+    start: float
+    end: float
+
+
+@dataclass(frozen=True, eq=False)
+class PolishedPlan:
+    """A plan with the exact hybrid dynamics along a fixed contact sequence.
+
+    Attributes:
+        phases: the contact sequence with the polished switch times.
+        t, x: the RK4 nodes' physical times [s] and states (q, v), (n_nodes, 2 n_q);
+            a touchdown has two nodes at its time (before and after the impact).
+        u: physical controls per interval, (N, n_u).
+        boundary_states: (q, v) at the control-interval boundaries, (N + 1, 2 n_q).
+        contact_forces: (lambda_n, lambda_t) [N] at the stick nodes, (n, 2).
+        impact_impulses: (Lambda_n, Lambda_t) [N s] per touchdown, (n, 2).
+        cost: the objective.
+        ipopt_status: IPOPT's return status of the last NLP; iterations: over all NLPs.
+        solve_time: seconds (build and solves); verification: the independent checks.
+    """
+
+    phases: tuple[Phase, ...]
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    boundary_states: np.ndarray
+    contact_forces: np.ndarray
+    impact_impulses: np.ndarray
+    cost: float
+    ipopt_status: str
+    iterations: int
+    solve_time: float
+    verification: Verification
+    history: tuple[tuple[float, str, int], ...] = field(default=())
+    clocks: np.ndarray | None = None
+
+    @property
+    def solved(self) -> bool:
+        return self.ipopt_status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+
+    @property
+    def status(self) -> str:
+        if not self.solved:
+            return "nlp_failed"
+        return "converged" if self.verification.passed else "verification_failed"
+
+    @property
+    def success(self) -> bool:
+        return self.status == "converged"
+
+    def summary(self) -> str:
+        switches = ", ".join(f"{p.mode} {p.start:.4f}-{p.end:.4f} s" for p in self.phases)
+        steps = "; ".join(f"c = {c:g}: {s}, {n} it." for c, s, n in self.history)
+        return "\n".join([
+            (f"polish: {self.status} (IPOPT {self.ipopt_status}, {self.iterations} "
+             f"iterations, {self.solve_time:.1f} s; {steps})"),
+            f"polish: objective {self.cost:.6g}; phases {switches}",
+            f"polish: {self.verification.summary()}",
+        ])
+
+
+def contact_phases(result: ContactResult, options: PolishOptions | None = None
+                   ) -> tuple[Phase, ...]:
+    """The contact sequence of a time-freezing plan: stick while the gap stays below
+    `flight_gap`, flight from the last sample before it rises above it until it falls
+    below `contact_gap` again (one contact)."""
+    options = options or PolishOptions()
+    system = result.physical.system
+    cls = system.cls
+    _check_system(cls)
+    t = result.physical.t
+    gaps = np.asarray(cls.function("gaps")(result.physical.y[:, system.q_index].T)).ravel()
+    horizon = result.problem.horizon
+    if gaps[0] > options.contact_gap:
+        raise InvalidInput(f"the plan starts with its contact open (gap {gaps[0]:.3g} m); "
+                           "the polish starts in stick")
+    modes, starts = [STICK], [0.0]
+    for k in range(1, len(t)):
+        if modes[-1] == STICK and gaps[k] > options.flight_gap:
+            modes.append(FLIGHT)
+            starts.append(float(t[k - 1]))
+        elif modes[-1] == FLIGHT and gaps[k] < options.contact_gap and t[k] < horizon - 1e-9:
+            modes.append(STICK)
+            starts.append(float(t[k]))
+    ends = starts[1:] + [horizon]
+    return tuple(Phase(m, s, e) for m, s, e in zip(modes, starts, ends, strict=True))
+
+
+def _check_system(cls) -> None:
+    if cls.n_contacts != 1:
+        raise InvalidInput(f"the polish handles one contact, the system has {cls.n_contacts}")
+    contact = cls.contacts[0]
+    if not contact.has_friction or contact.n_tangents != 1:
+        raise InvalidInput("the polish handles one frictional planar contact (one tangent "
+                           f"direction); contact {contact.name!r} has {contact.n_tangents}")
+
+
+class _Dynamics:
+    """The hybrid system's CasADi functions in x = (q, v) and u."""
+
+    def __init__(self, cls, alpha: float = 20.0) -> None:
+        q, v, u = cls.q, cls.v, cls.u
+        contact = cls.contacts[0]
+        jac = ca.horzcat(contact.normal, contact.tangents)  # J = [n B], (n_v, 2)
+        drift = ca.jacobian(ca.mtimes(jac.T, v), q) @ v  # (dJ/dt)^T v
+        vel = ca.mtimes(jac.T, v)
+        # Baumgarte: the contact's drift off gap = 0, v_n = 0 (and v_t = 0 in stick) decays
+        stab = ca.vertcat(2 * alpha * vel[0] + alpha**2 * contact.gap, alpha * vel[1])
+        minv_f = ca.solve(cls.mass_matrix, cls.forces)
+        minv_j = ca.solve(cls.mass_matrix, jac)
+        delassus = ca.mtimes(jac.T, minv_j)
+        lam = ca.solve(delassus, -(ca.mtimes(jac.T, minv_f) + drift + stab))
+        x = ca.vertcat(q, v)
+        self.mu = contact.mu
+        self.rhs = {STICK: ca.Function("stick", [x, u], [ca.vertcat(v, minv_f + minv_j @ lam)]),
+                    FLIGHT: ca.Function("flight", [x, u], [ca.vertcat(v, minv_f)])}
+        self.slip_force = {}
+        for name, sign in (("slip+", 1.0), ("slip-", -1.0)):
+            direction = ca.vertcat(1.0, -sign * self.mu)  # (lambda_n, lambda_t) / lambda_n
+            rate = ca.mtimes(delassus[0, :], direction)  # W_nn - s mu W_nt
+            lam_n = -(ca.mtimes(jac[:, 0].T, minv_f) + drift[0] + stab[0]) / rate
+            a = minv_f + minv_j @ direction * lam_n
+            fname = "slip_pos" if sign > 0 else "slip_neg"
+            self.rhs[name] = ca.Function(fname, [x, u], [ca.vertcat(v, a)])
+            self.slip_force[name] = ca.Function(fname + "_force", [x, u], [lam_n, rate])
+        self.force = ca.Function("force", [x, u], [lam])
+        self.gap = ca.Function("gap", [x], [contact.gap])
+        self.velocity = ca.Function("velocity", [x], [vel])  # (v_n, v_t)
+        self.delassus = ca.Function("delassus", [x], [delassus])
+        impulse = -ca.solve(delassus, vel)
+        self.impact = ca.Function("impact", [x], [ca.vertcat(q, v + minv_j @ impulse), impulse])
+
+    def step(self, mode: str, x, u, h):
+        f = self.rhs[mode]
+        k1 = f(x, u)
+        k2 = f(x + h / 2 * k1, u)
+        k3 = f(x + h / 2 * k2, u)
+        k4 = f(x + h * k3, u)
+        return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
+def _interpolate(t: np.ndarray, x: np.ndarray, at: float) -> np.ndarray:
+    i = int(np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 2))
+    w = float(np.clip((at - t[i]) / max(t[i + 1] - t[i], 1e-12), 0.0, 1.0))
+    return (1 - w) * x[i] + w * x[i + 1]
+
+
+def polish_contact(result: ContactResult, options: PolishOptions | None = None, *,
+                   phases: tuple[Phase, ...] | None = None,
+                   verbose: bool = True, guess=None) -> PolishedPlan:
+    """Re-solve a time-freezing plan's OCP along its contact sequence with the exact
+    hybrid dynamics (module docstring), warm started from the plan, and verify it.
+
+    Args:
+        result: a `ContactResult` (converged or not: its sequence and states are the guess).
+        options: `PolishOptions`.
+        phases: the contact sequence (default: `contact_phases(result)`).
+        verbose: print one line per NLP and the summary.
+
+    Returns:
+        A `PolishedPlan`; `success` only if IPOPT solved the last NLP and the plan passed
+        the checks.
+    """
+    options = options or PolishOptions()
+    problem: ContactProblem = result.problem
+    system = problem.system
+    cls = system.cls
+    _check_system(cls)
+    phases = contact_phases(result, options) if phases is None else tuple(phases)
+    if phases[0].mode != STICK or any(p.mode not in (STICK, FLIGHT, "slip+", "slip-")
+                                      for p in phases):
+        raise InvalidInput("phases must start in stick and be 'stick', 'slip+-' or 'flight'")
+    dyn = _Dynamics(cls, options.baumgarte)
+    n_q, n_u = cls.n_q, cls.n_u
+    n_int, horizon = problem.n_intervals, problem.horizon
+    dt = horizon / n_int
+    start = time.perf_counter()
+
+    # The plan's physical trajectory as the guess.
+    phys = result.physical
+    guess_x = phys.y[:, list(range(system.q_index.start, system.q_index.stop))
+                     + list(range(system.v_index.start, system.v_index.stop))]
+    guess_t, guess_u = phys.t, result.u
+    if guess is not None:  # an earlier polished plan: (t, x, u)
+        guess_t, guess_x, guess_u = guess
+    y_sym, u_sym = system.y, system.u
+    n_y = y_sym.numel()
+
+    def y_of(x, t):
+        # the time-freezing state layout of the problem's constraints and costs
+        entries = [ca.MX(0)] * n_y
+        for i in range(n_q):
+            entries[system.q_index.start + i] = x[i]
+            entries[system.v_index.start + i] = x[n_q + i]
+        entries[system.clock_index] = t
+        return ca.vertcat(*entries)
+
+    path = problem.path
+    path_fn = None if path is None else ca.Function("path", [y_sym, u_sym], [path.expression])
+    running = ca.Function("running", [y_sym, u_sym], [problem.running_cost])
+    terminal_cost = ca.Function("terminal_cost", [y_sym], [problem.terminal_cost])
+    terminal = problem.terminal
+    terminal_fn = (None if terminal is None
+                   else ca.Function("terminal", [y_sym], [terminal.expression]))
+
+    opti = ca.Opti()
+    controls = opti.variable(n_int, n_u) if n_u else ca.MX(n_int, 0)
+    margin = opti.parameter()
+    if n_u:
+        opti.subject_to(opti.bounded(np.tile(problem.u_lower, (n_int, 1)), controls,
+                                     np.tile(problem.u_upper, (n_int, 1))))
+        opti.set_initial(controls, np.clip(guess_u, problem.u_lower, problem.u_upper))
+    # The switch times, each kept inside the control interval its guess lies in.
+    # The control grid: k T / N with the stagewise clock, else free durations (the
+    # time-freezing OCP only fixes t(T) = T), guessed from the plan's clock.
+    clock_guess = np.asarray(result.ocp.x_intervals[:, result.system.clock_index], float)
+    if problem.stagewise_clock or options.fixed_grid:
+        grid = [k * dt for k in range(n_int + 1)]
+        grid_guess = np.array(grid, dtype=float)
+    else:
+        s_max = problem.speed_of_time[1] * problem.tau_horizon / n_int
+        durations = opti.variable(n_int)
+        opti.subject_to(opti.bounded(1e-2 * dt, durations, s_max))
+        opti.subject_to(ca.sum1(durations) == horizon)
+        d_guess = np.clip(np.diff(clock_guess), 1e-2 * dt, s_max)
+        d_guess *= horizon / d_guess.sum()
+        opti.set_initial(durations, d_guess)
+        grid = [ca.MX(0.0)]
+        for k in range(n_int):
+            grid.append(grid[-1] + durations[k])
+        grid_guess = np.concatenate([[0.0], np.cumsum(d_guess)])
+    switches = []
+    switch_interval = []
+    fractions = []
+    for phase in phases[1:]:
+        k = int(np.clip(np.searchsorted(grid_guess, phase.start, side="right") - 1, 0, n_int - 1))
+        fraction = opti.variable()
+        m = options.switch_margin
+        f_guess = float(np.clip((phase.start - grid_guess[k])
+                                / (grid_guess[k + 1] - grid_guess[k]), m, 1 - m))
+        opti.subject_to(opti.bounded(m, fraction, 1 - m))
+        opti.set_initial(fraction, f_guess)
+        if switch_interval and switch_interval[-1] == k:  # two switches in one interval: in order
+            opti.subject_to(fraction - fractions[-1] >= m)
+        fractions.append(fraction)
+        s = grid[k] + fraction * (grid[k + 1] - grid[k])
+        switches.append((s, grid_guess[k] + f_guess * (grid_guess[k + 1] - grid_guess[k])))
+        switch_interval.append(k)
+
+    # The slip sign of each touchdown, from the guess's tangential velocity just before it.
+    touchdown_signs = {}
+    for j, phase in enumerate(phases[1:]):
+        if phase.mode == STICK and phases[j].mode == FLIGHT:
+            before = _interpolate(guess_t, guess_x, max(phase.start - 1e-3, 0.0))
+            v_t = float(np.asarray(dyn.velocity(before)).ravel()[1])
+            touchdown_signs[j] = 1.0 if v_t >= 0 else -1.0
+    x0 = np.concatenate([problem.q0, problem.v0])
+    x = opti.variable(2 * n_q)
+    opti.subject_to(x == x0)
+    opti.set_initial(x, x0)
+    nodes = [(ca.MX(0.0), x)]  # (time, state)
+    boundary = [x]
+    stick_forces, impulses = [], []
+    cost = 0
+    mode_index = 0
+
+    def constrain_node(x, t, u, mode):
+        lower = np.concatenate([problem.q_lower, problem.v_lower])
+        upper = np.concatenate([problem.q_upper, problem.v_upper])
+        finite = np.isfinite(lower) | np.isfinite(upper)
+        if finite.any():
+            opti.subject_to(opti.bounded(lower[finite], x[[int(i) for i in np.flatnonzero(finite)]],
+                                         upper[finite]))
+        if path_fn is not None:
+            opti.subject_to(opti.bounded(np.broadcast_to(path.lower, path.expression.shape[0]),
+                                         path_fn(y_of(x, t), u),
+                                         np.broadcast_to(path.upper, path.expression.shape[0])))
+        if mode != FLIGHT and options.painleve_margin > 0:
+            # a unique contact force for either slip direction (W_nn - mu |W_nt| >= delta)
+            w = dyn.delassus(x)
+            opti.subject_to(w[0, 0] - dyn.mu * w[0, 1] >= options.painleve_margin)
+            opti.subject_to(w[0, 0] + dyn.mu * w[0, 1] >= options.painleve_margin)
+        if mode == STICK:
+            lam = dyn.force(x, u)
+            stick_forces.append((x, u))
+            opti.subject_to(lam[0] >= 0)
+            opti.subject_to(margin * dyn.mu * lam[0] - lam[1] >= 0)
+            opti.subject_to(margin * dyn.mu * lam[0] + lam[1] >= 0)
+        elif mode == FLIGHT:
+            opti.subject_to(dyn.gap(x) >= 0)
+        else:
+            sign = 1.0 if mode == "slip+" else -1.0
+            lam_n, rate = dyn.slip_force[mode](x, u)
+            opti.subject_to(lam_n >= 0)
+            opti.subject_to(rate >= 1e-2)  # no Painleve: a unique normal force
+            opti.subject_to(sign * dyn.velocity(x)[1] >= 0)
+
+    for k in range(n_int):
+        u_k = controls[k, :].T
+        inside = [j for j, ki in enumerate(switch_interval) if ki == k]
+        cuts = ([(grid[k], grid_guess[k], None)]
+                + [(switches[j][0], switches[j][1], j) for j in inside]
+                + [(grid[k + 1], grid_guess[k + 1], None)])
+        for (ta, ga, _), (tb, gb, jb) in itertools.pairwise(cuts):
+            mode = phases[mode_index].mode
+            n_steps = max(2, round(options.substeps * (gb - ga)
+                                   / max(grid_guess[k + 1] - grid_guess[k], 1e-12)))
+            h = (tb - ta) / n_steps
+            if isinstance(h, ca.MX):
+                opti.subject_to(h <= 1.5 * dt / options.substeps)  # no long RK4 steps
+            for i in range(n_steps):
+                x_next = dyn.step(mode, x, u_k, h)
+                cost = cost + h / 2 * (running(y_of(x, ta + i * h), u_k)
+                                       + running(y_of(x_next, ta + (i + 1) * h), u_k))
+                x = opti.variable(2 * n_q)
+                opti.subject_to(x == x_next)
+                t_guess = ga + (i + 1) * (gb - ga) / n_steps
+                opti.set_initial(x, _interpolate(guess_t, guess_x, t_guess))
+                nodes.append((ta + (i + 1) * h, x))
+                constrain_node(x, ta + (i + 1) * h, u_k, mode)
+            if jb is None:
+                continue
+            following = phases[jb + 1].mode
+            if mode == STICK and following == FLIGHT:
+                opti.subject_to(dyn.force(x, u_k)[0] == 0)  # lift-off
+            elif mode == STICK and following.startswith("slip"):
+                sign = 1.0 if following == "slip+" else -1.0
+                lam = dyn.force(x, u_k)  # the stick force reaches the cone's edge
+                opti.subject_to(lam[1] + sign * dyn.mu * lam[0] == 0)
+            elif mode.startswith("slip") and following == FLIGHT:
+                opti.subject_to(dyn.slip_force[mode](x, u_k)[0] == 0)  # lift-off
+            elif mode == FLIGHT and following == STICK:
+                opti.subject_to(dyn.gap(x) == 0)  # touchdown ...
+                # ... and an impact whose impulse flow (the reference's: slip at
+                # -mu sign(v_t) until v_t stops, then stick) stops the slip before the
+                # normal velocity: with rates r_n = W_nn - s mu W_nt > 0 and
+                # r_t = s (s mu W_tt - W_tn) > 0 for the slip sign s, that is
+                # |v_t| r_n <= -v_n r_t; then stick holds if |W_tn| <= mu W_tt.
+                vel = dyn.velocity(x)
+                w = dyn.delassus(x)
+                sign = touchdown_signs[jb]
+                rate_n = w[0, 0] - sign * dyn.mu * w[0, 1]
+                rate_t = sign * (sign * dyn.mu * w[1, 1] - w[1, 0])
+                opti.subject_to(sign * vel[1] >= 0)
+                opti.subject_to(rate_n >= 1e-3)
+                opti.subject_to(rate_t >= 1e-3)
+                opti.subject_to(sign * vel[1] * rate_n <= -vel[0] * rate_t)
+                opti.subject_to(margin * dyn.mu * w[1, 1] - w[1, 0] >= 0)
+                opti.subject_to(margin * dyn.mu * w[1, 1] + w[1, 0] >= 0)
+                post, impulse = dyn.impact(x)  # the post-impact state: J v+ = 0
+                impulses.append(impulse)
+                x = opti.variable(2 * n_q)
+                opti.subject_to(x == post)
+                opti.set_initial(x, _interpolate(guess_t, guess_x, gb))
+                nodes.append((tb, x))
+                constrain_node(x, tb, u_k, STICK)
+            mode_index = jb + 1
+        boundary.append(x)
+    y_end = y_of(x, horizon)
+    if terminal_fn is not None:
+        opti.subject_to(opti.bounded(np.broadcast_to(terminal.lower, terminal.expression.shape[0]),
+                                     terminal_fn(y_end),
+                                     np.broadcast_to(terminal.upper, terminal.expression.shape[0])))
+    opti.minimize(cost + terminal_cost(y_end))
+    opti.solver("ipopt", {"print_time": False, "expand": True},
+                {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0,
+                 "sb": "yes"})
+    history = []
+    status, iterations = "", 0
+    values = None
+    for c in options.cone_margins:
+        opti.set_value(margin, c)
+        try:
+            sol = opti.solve()
+        except RuntimeError:
+            sol = opti.debug
+        stats = sol.stats()
+        status = str(stats.get("return_status", "unknown"))
+        n_it = int(stats.get("iter_count", 0))
+        iterations += n_it
+        history.append((c, status, n_it))
+        if verbose:
+            print(f"  polish  cone margin {c:g}: {status}, {n_it} iterations, objective "
+                  f"{float(sol.value(opti.f)):.6g}", flush=True)
+        values = sol
+        if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level") and verbose:
+            g = np.asarray(sol.value(opti.g)).ravel()
+            lbg = np.asarray(sol.value(opti.lbg)).ravel()
+            ubg = np.asarray(sol.value(opti.ubg)).ravel()
+            viol = np.maximum(lbg - g, g - ubg)
+            for i in np.argsort(-viol)[:12]:
+                print(f"    violation {viol[i]:.3e} at g[{i}] of {g.size}: "
+                      f"{opti.debug.g_describe(int(i))[:150]}", flush=True)
+        if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+            break
+        opti.set_initial(sol.value_variables())
+        opti.set_initial(opti.lam_g, sol.value(opti.lam_g))
+    sol = values
+    u_value = np.asarray(sol.value(controls)).reshape(n_int, n_u) if n_u else np.zeros((n_int, 0))
+    node_x = np.array([np.asarray(sol.value(xn)).ravel() for _, xn in nodes])
+    times = np.array([float(sol.value(tn)) if isinstance(tn, ca.MX) else float(tn)
+                      for tn, _ in nodes])
+    switch_values = [float(sol.value(s)) for s, _ in switches]
+    clocks = np.array([float(sol.value(g)) if isinstance(g, ca.MX) else float(g) for g in grid])
+    boundary_x = np.array([np.asarray(sol.value(b)).ravel() for b in boundary])
+    forces = np.array([np.asarray(dyn.force(sol.value(xs), sol.value(us))).ravel()
+                       for xs, us in stick_forces]).reshape(-1, 2)
+    impact_values = np.array([np.asarray(sol.value(i)).ravel() for i in impulses]).reshape(-1, 2)
+    ends = switch_values + [horizon]
+    starts = [0.0] + switch_values
+    polished_phases = tuple(Phase(p.mode, s, e)
+                            for p, s, e in zip(phases, starts, ends, strict=True))
+    solve_time = time.perf_counter() - start
+    verification = _verify(cls, problem, clocks, boundary_x, u_value, node_x, dyn, forces,
+                           impact_values, options)
+    plan = PolishedPlan(
+        phases=polished_phases, t=times, x=node_x, u=u_value, boundary_states=boundary_x,
+        contact_forces=forces, impact_impulses=impact_values, cost=float(sol.value(opti.f)),
+        ipopt_status=status, iterations=iterations, solve_time=solve_time,
+        verification=verification, history=tuple(history), clocks=clocks)
+    if verbose:
+        print(plan.summary(), flush=True)
+    return plan
+
+
+def _verify(cls, problem: ContactProblem, clocks: np.ndarray, boundary_x: np.ndarray, u: np.ndarray,
+            node_x: np.ndarray, dyn: _Dynamics, forces: np.ndarray, impulses: np.ndarray,
+            options: PolishOptions) -> Verification:
+    """The replay checks of `verify_plan` on the polished plan, plus its gaps and cone."""
+    n_int, horizon = problem.n_intervals, problem.horizon
+    plan = ReplayedPlan(cls=cls, x0=np.concatenate([problem.q0, problem.v0]),
+                        clocks=clocks, states=boundary_x,
+                        controls=u, horizon=horizon)
+    notes: list[str] = []
+    window = LOCAL_DEFECT_IMPACT_WINDOW * horizon / n_int
+    try:
+        deviation, method, reference_end = _reference_deviation(plan, boundary_x[-1], window)
+    except TfcontactError as error:
+        deviation, method, reference_end = float("inf"), f"reference stopped ({error})", None
+    defects = _local_defects(plan, [(k, k + 1) for k in range(n_int)], options.gap_tolerance)
+    end_ok, defect_sum, amplification = _end_state_check(
+        plan, options.end_state_tolerance, deviation, defects, reference_end, notes)
+    gaps = np.asarray(dyn.gap(node_x.T)).ravel()
+    min_gap = float(gaps.min())
+    # Forces [N] in the cone at the stick nodes, impulses [N s] at the touchdowns.
+    both = np.vstack([forces, impulses]) if len(impulses) else forces
+    cone = float(np.max(np.maximum.reduce([np.abs(both[:, 1]) - dyn.mu * both[:, 0],
+                                           -both[:, 0], np.zeros(len(both))]), initial=0.0))
+    largest = float(np.max(np.abs(both[:, 0]), initial=0.0))
+    notes.append(f"cone checked on {len(forces)} stick nodes (forces, N) and {len(impulses)} "
+                 f"touchdown impulses (N s); tolerance {options.cone_tolerance:g} x the "
+                 f"largest normal value {largest:.3g}")
+    passed = (end_ok and min_gap >= -options.gap_tolerance
+              and cone <= options.cone_tolerance * max(largest, 1e-12))
+    return Verification(
+        passed=bool(passed), method=method, end_state_deviation=deviation, min_gap=min_gap,
+        friction_cone_violation=cone, clock_monotone=True, clock_end_error=0.0,
+        tolerances={"end_state": options.end_state_tolerance, "gap": options.gap_tolerance,
+                    "cone": options.cone_tolerance},
+        notes=tuple(notes), dissipation_violation=float("nan"), local_defects=defects,
+        defect_sum=defect_sum, open_loop_amplification=amplification,
+        open_loop_unstable=bool(end_ok and deviation > options.end_state_tolerance))

@@ -1,0 +1,40 @@
+"""PROTOTYPE driver (see polish.py): the reduced TF-9 monoped's relaxed plan, then the
+exact re-solve along stick -> slip- -> flight -> stick, warm started step by step.
+
+    PYTHONPATH=benchmarks/monoped_polish python benchmarks/monoped_polish/run.py 16:0 32:0
+
+Each argument `substeps:painleve_margin` is one more re-solve from the previous one.
+"""
+
+import dataclasses
+import sys
+import time
+
+import numpy as np
+from polish import Phase, PolishOptions, contact_phases, polish_contact
+
+from tfcontact.ocp.contact import solve_contact
+from tfcontact.scenes.monoped import monoped_options, monoped_problem
+
+mp = monoped_problem("reduced")
+options = monoped_options("reduced")
+options = dataclasses.replace(
+    options, homotopy=dataclasses.replace(options.homotopy, max_refinements=3),
+    nlp=dataclasses.replace(options.nlp, options={"mu_strategy": "adaptive"},
+                            element_derivatives=True, threads=1, intermediate_tol=0.1))
+relaxed = solve_contact(mp.problem, options, verbose=False)  # 778 iterations, 9 s
+found = contact_phases(relaxed)  # stick, flight, stick
+lift_off = found[1].start
+phases = (Phase("stick", 0.0, 0.55), Phase("slip-", 0.55, lift_off),
+          Phase("flight", lift_off, found[1].end), Phase("stick", found[2].start, 1.0))
+plan = polish_contact(relaxed, PolishOptions(substeps=8, max_iter=3000, cone_margins=(1.0,),
+                                             painleve_margin=0.0), phases=phases)
+for argument in sys.argv[1:]:
+    substeps, margin = int(argument.split(":")[0]), float(argument.split(":")[1])
+    start = time.perf_counter()
+    plan = polish_contact(relaxed, PolishOptions(substeps=substeps, max_iter=3000,
+                                                 cone_margins=(1.0,), painleve_margin=margin),
+                          phases=plan.phases, guess=(plan.t, plan.x, plan.u))
+    print(f"substeps {substeps}, Painleve margin {margin}: {time.perf_counter() - start:.1f} s")
+    print("local defects", np.array2string(np.asarray(plan.verification.local_defects),
+                                           precision=3), flush=True)
