@@ -190,4 +190,9 @@ def test_without_refinement_a_failed_step_is_followed_from_its_iterate():
     result = solver.solve(homotopy=Homotopy(kappa=0.01, tolerance=1e-6, max_nlps=4,
                                             max_refinements=1))
     assert result.status is MpccStatus.NLP_FAILED
-    assert sum(s.refined for s in result.history) == 1
+    # 1; 1e-2 fails, 1e-1 (the one refinement) and 1e-2 solve; 1e-4 fails and the plain
+    # schedule goes on from its iterate to 1e-6, which fails too
+    assert [s.sigma for s in result.history] == pytest.approx([1, 1e-2, 1e-1, 1e-2, 1e-4,
+                                                               1e-6])
+    assert [s.refined for s in result.history] == [False, False, True, False, False, False]
+    np.testing.assert_array_equal(solver.calls[5][1], solver.calls[4][2])
