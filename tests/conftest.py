@@ -22,9 +22,11 @@ def rng():
 
 @pytest.fixture
 def load_script():
-    """Import `scripts/<name>.py` as a module (registered, so that its dataclasses work)."""
-    def load(name: str):
-        spec = importlib.util.spec_from_file_location(f"scripts_{name}", SCRIPTS / f"{name}.py")
+    """Import `<folder>/<name>.py` (default folder: `scripts/`) as a module (registered, so
+    that its dataclasses work)."""
+    def load(name: str, folder: Path = SCRIPTS):
+        spec = importlib.util.spec_from_file_location(f"{folder.name}_{name}",
+                                                      folder / f"{name}.py")
         module = importlib.util.module_from_spec(spec)
         sys.modules[spec.name] = module
         spec.loader.exec_module(module)

@@ -1,6 +1,10 @@
-"""PROTOTYPE, not part of the tfcontact package and not tested: the code of the monoped
-experiments in benchmarks/monoped_settings.md (sections of 2026-11-24 and 2026-11-25),
-kept so that they can be rerun and the idea taken further. Run `run.py` beside it.
+"""PROTOTYPE, not part of the tfcontact package: the code of the monoped experiments in
+benchmarks/monoped_settings.md (2026-11-25, the slip-phase rows), kept so that they can
+be rerun and the idea taken further. Run `run.py` beside it. Its dynamics and touchdown
+rows are tested against closed forms and the reference's impulse flow
+(tests/test_monoped_polish_prototype.py); its solves are not, and they are fragile:
+writing the grid as linspace or the touchdown rows as "expression >= 0" (equal up to
+round-off) moved the first solve from 472 iterations to the 3000 cap.
 
 Mode-fixed re-solve ("polish"): the exact hybrid dynamics along the contact sequence a
 time-freezing plan found. The homotopy of `solve_contact` discovers when the contact
@@ -50,6 +54,11 @@ from tfcontact.ocp.contact import (
 from tfcontact.ocp.verify import Verification
 
 STICK, FLIGHT = "stick", "flight"
+TRANSITIONS = {(STICK, "slip+"), (STICK, "slip-"), ("slip+", FLIGHT), ("slip-", FLIGHT),
+               (FLIGHT, STICK)}
+"""The phase changes the re-solve models. A foot lifts off through slip: straight from
+stick, lambda_n = 0 with the cone row at the same node forces lambda_t = 0 too, and the
+exact dynamics do not give that."""
 
 
 @dataclass(frozen=True)
@@ -60,8 +69,8 @@ class PolishOptions:
         substeps: RK4 steps per control interval (a piece of an interval gets its share,
             at least 2).
         cone_margins: the continuation of the stick cone |lambda_t| <= c mu lambda_n, each
-            NLP warm started from the last (measured on the reduced monoped: from the
-            relaxed plan c = 0.95 alone ended infeasible, c = 1 then 0.95 converged).
+            NLP warm started from the last. With a slip phase only c = 1: the stick force
+            reaches the cone's edge where the slip starts.
         flight_gap: a relaxed plan's contact counts as open above this gap [m] ...
         contact_gap: ... and as closed again below this one [m].
         switch_margin: phase switches keep this fraction of a control interval from its
@@ -73,8 +82,7 @@ class PolishOptions:
     substeps: int = 16
     baumgarte: float = 20.0
     painleve_margin: float = 0.05
-    fixed_grid: bool = True
-    cone_margins: tuple[float, ...] = (1.0, 0.95)
+    cone_margins: tuple[float, ...] = (1.0,)
     flight_gap: float = 5e-3
     contact_gap: float = 1e-3
     switch_margin: float = 1e-3
@@ -103,8 +111,8 @@ class PolishOptions:
 
 @dataclass(frozen=True)
 class Phase:
-    """One phase of a contact sequence: `mode` ("stick" or "flight") from `start` to
-    `end` [s]."""
+    """One phase of a contact sequence: `mode` ("stick", "slip+", "slip-" or "flight") from
+    `start` to `end` [s]."""
 
     mode: str
     start: float
@@ -170,9 +178,10 @@ class PolishedPlan:
 
 def contact_phases(result: ContactResult, options: PolishOptions | None = None
                    ) -> tuple[Phase, ...]:
-    """The contact sequence of a time-freezing plan: stick while the gap stays below
+    """The stick and flight phases of a time-freezing plan: stick while the gap stays below
     `flight_gap`, flight from the last sample before it rises above it until it falls
-    below `contact_gap` again (one contact)."""
+    below `contact_gap` again (one contact). `polish_contact` needs a slip phase before
+    each lift-off in addition (see `TRANSITIONS`)."""
     options = options or PolishOptions()
     system = result.physical.system
     cls = system.cls
@@ -248,37 +257,61 @@ class _Dynamics:
         return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
+def touchdown_rows(w, v_n, v_t, sign: float, mu, cone_margin=1.0) -> list[tuple]:
+    """Pairs (a, b), each meaning a >= b, under which an inelastic planar impact with
+    Delassus matrix w and contact velocities (v_n < 0, v_t) ends in stick, by the
+    reference's impulse flow (`tfcontact.timefreezing.reference`): slip at
+    lambda_t = -s mu lambda_n (s the sign of v_t) until v_t stops, before v_n does; then
+    stick. With the rates r_n = W_nn - s mu W_nt > 0 and r_t = s (s mu W_tt - W_tn) > 0 of
+    v_n and |v_t| per unit lambda_n: |v_t| r_n <= -v_n r_t, and |W_tn| <= mu W_tt for the
+    stick that follows. Numbers or CasADi expressions. (Written as the measured runs wrote
+    them: an algebraically equal rewrite moved IPOPT's path to the iteration cap.)"""
+    rate_n = w[0, 0] - sign * mu * w[0, 1]
+    rate_t = sign * (sign * mu * w[1, 1] - w[1, 0])
+    return [(sign * v_t, 0), (rate_n, 1e-3), (rate_t, 1e-3),
+            (-v_n * rate_t, sign * v_t * rate_n),
+            (cone_margin * mu * w[1, 1] - w[1, 0], 0), (cone_margin * mu * w[1, 1] + w[1, 0], 0)]
+
+
 def _interpolate(t: np.ndarray, x: np.ndarray, at: float) -> np.ndarray:
     i = int(np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 2))
     w = float(np.clip((at - t[i]) / max(t[i + 1] - t[i], 1e-12), 0.0, 1.0))
     return (1 - w) * x[i] + w * x[i + 1]
 
 
-def polish_contact(result: ContactResult, options: PolishOptions | None = None, *,
-                   phases: tuple[Phase, ...] | None = None,
-                   verbose: bool = True, guess=None) -> PolishedPlan:
+def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
+                   options: PolishOptions | None = None, *, verbose: bool = True,
+                   guess: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+                   ) -> PolishedPlan:
     """Re-solve a time-freezing plan's OCP along its contact sequence with the exact
     hybrid dynamics (module docstring), warm started from the plan, and verify it.
 
     Args:
-        result: a `ContactResult` (converged or not: its sequence and states are the guess).
+        result: a `ContactResult` (converged or not: its states and controls are the
+            guess unless `guess` is given).
+        phases: the contact sequence, starting in stick, its changes in `TRANSITIONS`.
         options: `PolishOptions`.
-        phases: the contact sequence (default: `contact_phases(result)`).
-        verbose: print one line per NLP and the summary.
+        verbose: print one line per NLP (and the most violated rows of a failed one) and
+            the summary.
+        guess: (t, x, u) of an earlier polished plan to start from instead.
 
     Returns:
         A `PolishedPlan`; `success` only if IPOPT solved the last NLP and the plan passed
         the checks.
     """
+    phases = tuple(phases)
+    if phases[0].mode != STICK:
+        raise InvalidInput(f"the phases must start in stick, got {phases[0].mode!r}")
+    for before, after in itertools.pairwise(phases):
+        if (before.mode, after.mode) not in TRANSITIONS:
+            raise InvalidInput(f"no {before.mode!r} -> {after.mode!r} change at "
+                               f"{after.start:.4g} s: the re-solve models {sorted(TRANSITIONS)}"
+                               " (a foot lifts off through slip)")
     options = options or PolishOptions()
     problem: ContactProblem = result.problem
     system = problem.system
     cls = system.cls
     _check_system(cls)
-    phases = contact_phases(result, options) if phases is None else tuple(phases)
-    if phases[0].mode != STICK or any(p.mode not in (STICK, FLIGHT, "slip+", "slip-")
-                                      for p in phases):
-        raise InvalidInput("phases must start in stick and be 'stick', 'slip+-' or 'flight'")
     dyn = _Dynamics(cls, options.baumgarte)
     n_q, n_u = cls.n_q, cls.n_u
     n_int, horizon = problem.n_intervals, problem.horizon
@@ -319,25 +352,11 @@ def polish_contact(result: ContactResult, options: PolishOptions | None = None, 
         opti.subject_to(opti.bounded(np.tile(problem.u_lower, (n_int, 1)), controls,
                                      np.tile(problem.u_upper, (n_int, 1))))
         opti.set_initial(controls, np.clip(guess_u, problem.u_lower, problem.u_upper))
-    # The switch times, each kept inside the control interval its guess lies in.
-    # The control grid: k T / N with the stagewise clock, else free durations (the
-    # time-freezing OCP only fixes t(T) = T), guessed from the plan's clock.
-    clock_guess = np.asarray(result.ocp.x_intervals[:, result.system.clock_index], float)
-    if problem.stagewise_clock or options.fixed_grid:
-        grid = [k * dt for k in range(n_int + 1)]
-        grid_guess = np.array(grid, dtype=float)
-    else:
-        s_max = problem.speed_of_time[1] * problem.tau_horizon / n_int
-        durations = opti.variable(n_int)
-        opti.subject_to(opti.bounded(1e-2 * dt, durations, s_max))
-        opti.subject_to(ca.sum1(durations) == horizon)
-        d_guess = np.clip(np.diff(clock_guess), 1e-2 * dt, s_max)
-        d_guess *= horizon / d_guess.sum()
-        opti.set_initial(durations, d_guess)
-        grid = [ca.MX(0.0)]
-        for k in range(n_int):
-            grid.append(grid[-1] + durations[k])
-        grid_guess = np.concatenate([[0.0], np.cumsum(d_guess)])
+    # The control grid is fixed, k T / N (a restriction where the time-freezing OCP fixes
+    # only t(T) = T: free durations let RK4 take long steps, and the optimiser used their
+    # error). The switch times are kept inside the control interval their guess lies in.
+    grid = [k * dt for k in range(n_int + 1)]
+    grid_guess = np.array(grid)
     switches = []
     switch_interval = []
     fractions = []
@@ -430,32 +449,19 @@ def polish_contact(result: ContactResult, options: PolishOptions | None = None, 
             if jb is None:
                 continue
             following = phases[jb + 1].mode
-            if mode == STICK and following == FLIGHT:
-                opti.subject_to(dyn.force(x, u_k)[0] == 0)  # lift-off
-            elif mode == STICK and following.startswith("slip"):
+            if mode == STICK:  # to slip
                 sign = 1.0 if following == "slip+" else -1.0
                 lam = dyn.force(x, u_k)  # the stick force reaches the cone's edge
                 opti.subject_to(lam[1] + sign * dyn.mu * lam[0] == 0)
-            elif mode.startswith("slip") and following == FLIGHT:
-                opti.subject_to(dyn.slip_force[mode](x, u_k)[0] == 0)  # lift-off
-            elif mode == FLIGHT and following == STICK:
+            elif mode != FLIGHT:  # slip to flight: lift-off
+                opti.subject_to(dyn.slip_force[mode](x, u_k)[0] == 0)
+            else:  # flight to stick
                 opti.subject_to(dyn.gap(x) == 0)  # touchdown ...
-                # ... and an impact whose impulse flow (the reference's: slip at
-                # -mu sign(v_t) until v_t stops, then stick) stops the slip before the
-                # normal velocity: with rates r_n = W_nn - s mu W_nt > 0 and
-                # r_t = s (s mu W_tt - W_tn) > 0 for the slip sign s, that is
-                # |v_t| r_n <= -v_n r_t; then stick holds if |W_tn| <= mu W_tt.
+                # ... and an impact whose impulse flow ends in stick
                 vel = dyn.velocity(x)
-                w = dyn.delassus(x)
-                sign = touchdown_signs[jb]
-                rate_n = w[0, 0] - sign * dyn.mu * w[0, 1]
-                rate_t = sign * (sign * dyn.mu * w[1, 1] - w[1, 0])
-                opti.subject_to(sign * vel[1] >= 0)
-                opti.subject_to(rate_n >= 1e-3)
-                opti.subject_to(rate_t >= 1e-3)
-                opti.subject_to(sign * vel[1] * rate_n <= -vel[0] * rate_t)
-                opti.subject_to(margin * dyn.mu * w[1, 1] - w[1, 0] >= 0)
-                opti.subject_to(margin * dyn.mu * w[1, 1] + w[1, 0] >= 0)
+                for big, small in touchdown_rows(dyn.delassus(x), vel[0], vel[1],
+                                                 touchdown_signs[jb], dyn.mu, margin):
+                    opti.subject_to(big >= small)
                 post, impulse = dyn.impact(x)  # the post-impact state: J v+ = 0
                 impulses.append(impulse)
                 x = opti.variable(2 * n_q)
@@ -510,7 +516,7 @@ def polish_contact(result: ContactResult, options: PolishOptions | None = None, 
     times = np.array([float(sol.value(tn)) if isinstance(tn, ca.MX) else float(tn)
                       for tn, _ in nodes])
     switch_values = [float(sol.value(s)) for s, _ in switches]
-    clocks = np.array([float(sol.value(g)) if isinstance(g, ca.MX) else float(g) for g in grid])
+    clocks = grid_guess
     boundary_x = np.array([np.asarray(sol.value(b)).ravel() for b in boundary])
     forces = np.array([np.asarray(dyn.force(sol.value(xs), sol.value(us))).ravel()
                        for xs, us in stick_forces]).reshape(-1, 2)

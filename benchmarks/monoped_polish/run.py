@@ -27,14 +27,15 @@ found = contact_phases(relaxed)  # stick, flight, stick
 lift_off = found[1].start
 phases = (Phase("stick", 0.0, 0.55), Phase("slip-", 0.55, lift_off),
           Phase("flight", lift_off, found[1].end), Phase("stick", found[2].start, 1.0))
-plan = polish_contact(relaxed, PolishOptions(substeps=8, max_iter=3000, cone_margins=(1.0,),
-                                             painleve_margin=0.0), phases=phases)
+plan = polish_contact(relaxed, phases, PolishOptions(substeps=8, max_iter=3000,
+                                                     painleve_margin=0.0))
 for argument in sys.argv[1:]:
     substeps, margin = int(argument.split(":")[0]), float(argument.split(":")[1])
     start = time.perf_counter()
-    plan = polish_contact(relaxed, PolishOptions(substeps=substeps, max_iter=3000,
-                                                 cone_margins=(1.0,), painleve_margin=margin),
-                          phases=plan.phases, guess=(plan.t, plan.x, plan.u))
+    plan = polish_contact(relaxed, plan.phases,
+                          PolishOptions(substeps=substeps, max_iter=3000,
+                                        painleve_margin=margin),
+                          guess=(plan.t, plan.x, plan.u))
     print(f"substeps {substeps}, Painleve margin {margin}: {time.perf_counter() - start:.1f} s")
     print("local defects", np.array2string(np.asarray(plan.verification.local_defects),
                                            precision=3), flush=True)

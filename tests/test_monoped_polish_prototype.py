@@ -1,0 +1,118 @@
+"""The monoped re-solve prototype (benchmarks/monoped_polish, not part of the package): its
+hybrid dynamics and touchdown rows against closed forms and the reference's impulse flow.
+Its solves are not tested here (1.5 min; `run.py` reruns them)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tfcontact.errors import IncompatibleOptions, InvalidInput
+from tfcontact.scenes.particles import G, painleve_rod, point_mass
+from tfcontact.timefreezing.reference import _planar_impulse_flow
+
+PROTOTYPE = Path(__file__).resolve().parents[1] / "benchmarks" / "monoped_polish"
+
+
+@pytest.fixture
+def polish(load_script):
+    return load_script("polish", PROTOTYPE)
+
+
+def test_stick_holds_a_pushed_particle_with_the_opposing_friction(polish):
+    """A unit particle on the ground pushed sideways by F < mu m g: no acceleration,
+    lambda_n = m g, lambda_t = -F; in flight it falls with g and is pushed with F."""
+    dyn = polish._Dynamics(point_mass(2, mu=0.5, controlled=True))
+    x = np.array([0.3, 0.0, 0.0, 0.0])
+    u = np.array([2.0, 0.0])
+    np.testing.assert_allclose(np.asarray(dyn.rhs["stick"](x, u)).ravel(), 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(dyn.force(x, u)).ravel(), [G, -2.0], rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(dyn.rhs[polish.FLIGHT](x, u)).ravel()[2:], [2.0, -G],
+                               rtol=1e-12)
+
+
+@pytest.mark.parametrize(("mode", "sign"), [("slip+", 1.0), ("slip-", -1.0)])
+def test_slip_decelerates_a_sliding_particle_by_mu_g(polish, mode, sign):
+    """A particle of mass 3 sliding on the ground at v_x = s: lambda_n = m g, a_x = -s mu g,
+    no normal acceleration; the rate W_nn - s mu W_nt is 1/m (W_nt = 0)."""
+    dyn = polish._Dynamics(point_mass(2, mu=0.4, mass=3.0))
+    x = np.array([0.0, 0.0, sign, 0.0])
+    a = np.asarray(dyn.rhs[mode](x, np.zeros(0))).ravel()
+    np.testing.assert_allclose(a, [sign, 0.0, -sign * 0.4 * G, 0.0], atol=1e-12)
+    lam_n, rate = (float(v) for v in dyn.slip_force[mode](x, np.zeros(0)))
+    assert lam_n == pytest.approx(3.0 * G, rel=1e-12)
+    assert rate == pytest.approx(1 / 3.0, rel=1e-12)
+
+
+def test_baumgarte_pulls_a_drifted_contact_back(polish):
+    """Off the contact (gap h, closing at v_n), the stick rows give the normal acceleration
+    -(2 alpha v_n + alpha^2 h): the drift decays instead of staying."""
+    dyn = polish._Dynamics(point_mass(2, mu=0.5), alpha=20.0)
+    x = np.array([0.0, 1e-4, 0.0, -2e-3])
+    a_z = float(np.asarray(dyn.rhs[polish.STICK](x, np.zeros(0))).ravel()[3])
+    assert a_z == pytest.approx(-(2 * 20.0 * -2e-3 + 20.0**2 * 1e-4), rel=1e-12)
+
+
+def test_stick_pins_the_rods_end_like_a_pendulum_pivot(polish):
+    """Painleve's rod with its lower end stuck is a pendulum about that end:
+    theta'' = -(3 g / 2 L) cos(theta) whatever omega; the centre's acceleration follows
+    from the pinned end."""
+    length = 1.0
+    dyn = polish._Dynamics(painleve_rod(mu=0.5, length=length))
+    theta, omega = 0.7, 1.3
+    q = np.array([0.2 + length / 2 * np.cos(theta), length / 2 * np.sin(theta), theta])
+    v = np.array([-length / 2 * np.sin(theta) * omega, length / 2 * np.cos(theta) * omega,
+                  omega])
+    a = np.asarray(dyn.rhs[polish.STICK](np.concatenate([q, v]), np.zeros(0))).ravel()[3:]
+    alpha = -3 * G / (2 * length) * np.cos(theta)
+    np.testing.assert_allclose(a[2], alpha, rtol=1e-12)
+    np.testing.assert_allclose(
+        a[:2], length / 2 * np.array([-np.sin(theta) * alpha - np.cos(theta) * omega**2,
+                                      np.cos(theta) * alpha - np.sin(theta) * omega**2]),
+        rtol=1e-12)
+
+
+def test_sticking_impact_stops_the_contact_point(polish):
+    """A particle of mass 3 landing with v = (1, -2) m/s: the sticking impact stops it,
+    impulse (6, -3) N s."""
+    dyn = polish._Dynamics(point_mass(2, mu=0.8, mass=3.0))
+    post, impulse = dyn.impact(np.array([0.5, 0.0, 1.0, -2.0]))
+    np.testing.assert_allclose(np.asarray(post).ravel(), [0.5, 0.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(np.asarray(impulse).ravel(), [6.0, -3.0], rtol=1e-12)
+
+
+def test_touchdown_rows_hold_exactly_when_the_impulse_flow_ends_in_stick(polish):
+    """Random Delassus matrices and landing velocities: the rows are all >= 0 if and only
+    if the reference's impulse flow ends with v_t = 0 (jams left out)."""
+    rng = np.random.default_rng(3)
+    outcomes = []
+    for _ in range(400):
+        root = rng.normal(size=(2, 2))
+        w = root @ root.T + 0.05 * np.eye(2)
+        v_n, v_t = -rng.uniform(0.1, 2.0), rng.normal()
+        mu = rng.uniform(0.2, 1.0)
+        sign = 1.0 if v_t >= 0 else -1.0
+        try:
+            lam = np.array(_planar_impulse_flow(w, v_n, v_t, mu))
+        except IncompatibleOptions:
+            continue
+        rows = [big - small for big, small in polish.touchdown_rows(w, v_n, v_t, sign, mu)]
+        if min(rows[1:3]) < 0 and min(rows[1:3]) > -1e-3:
+            continue  # within the rows' 1e-3 safety margin on the rates
+        sticks = abs(v_t + (w @ lam)[1]) < 1e-9
+        assert (min(rows) >= 0) == sticks, (w, v_n, v_t, mu)
+        outcomes.append(sticks)
+    assert 50 < sum(outcomes) < len(outcomes) - 50  # both outcomes sampled
+
+
+def test_phase_changes_the_re_solve_does_not_model_are_named(polish):
+    with pytest.raises(InvalidInput, match="no 'stick' -> 'flight' change .* lifts off "
+                                           "through slip"):
+        polish.polish_contact(None, (polish.Phase("stick", 0, 0.5),
+                                     polish.Phase("flight", 0.5, 1)))
+    with pytest.raises(InvalidInput, match="must start in stick"):
+        polish.polish_contact(None, (polish.Phase(polish.FLIGHT, 0, 1),))
+    with pytest.raises(InvalidInput, match="cone_margins"):
+        polish.PolishOptions(cone_margins=(1.0, 1.2))
