@@ -40,6 +40,7 @@ from tfcontact.timefreezing import (
     with_lagrange_cost,
     with_speed_of_time,
 )
+from tfcontact.timefreezing.reference import _planar_impulse_flow
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -991,6 +992,41 @@ def test_leaning_stick_impact_that_stops_slipping_ends_stuck():
     assert impact.normal_impulse == pytest.approx(p1 + p2, rel=1e-12)
     assert impact.tangential_impulse[0] == pytest.approx(-mu * p1 + ratio * p2, rel=1e-12)
     np.testing.assert_allclose(_contact_velocity(theta, impact.post), 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("v_t", [0.2, 2.0])
+def test_leaning_stick_impact_in_the_painleve_region_stops_slipping_and_sticks(v_t):
+    """theta = 0.6, mu = 1.5: W_nn - mu W_nt < 0 for a forward slip (the Painleve region),
+    so the slip deepens the approach; it still stops (|W_tn| < mu W_tt), and the stick
+    piece ends the impact with both contact velocities zero: Lambda = -W^-1 v_c."""
+    mu, theta = 1.5, 0.6
+    impact, w = _stick_impact(mu, theta, v_t)
+    assert w[0, 0] - mu * w[0, 1] < 0 < mu * w[1, 1] - abs(w[1, 0])
+    v_c = _contact_velocity(theta, impact.pre)
+    lam = np.array([impact.normal_impulse, impact.tangential_impulse[0]])
+    np.testing.assert_allclose(lam, -np.linalg.solve(w, v_c), rtol=1e-12)
+    np.testing.assert_allclose(_contact_velocity(theta, impact.post), 0.0, atol=1e-12)
+    assert abs(lam[1]) <= mu * lam[0]
+
+
+def test_impulse_flow_never_jams_and_dissipates():
+    """Random positive definite W, friction and landing velocities: the flow ends with
+    v_n = 0, an impulse in the cone, and less kinetic energy (Delta T = Lambda^T v_c +
+    Lambda^T W Lambda / 2 <= 0), inside the Painleve region as well."""
+    rng = np.random.default_rng(11)
+    painleve = 0
+    for _ in range(2000):
+        root = rng.normal(size=(2, 2))
+        w = root @ root.T + 1e-3 * np.eye(2)
+        mu = rng.uniform(0.1, 2.0)
+        v_c = np.array([-rng.uniform(0.01, 3.0), rng.normal()])
+        painleve += w[0, 0] - mu * np.sign(v_c[1]) * w[0, 1] <= 0
+        lam = np.array(_planar_impulse_flow(w, v_c[0], v_c[1], mu))
+        post = v_c + w @ lam
+        assert abs(post[0]) <= 1e-12 * max(1.0, abs(v_c).max())
+        assert lam[0] >= 0 and abs(lam[1]) <= mu * lam[0] * (1 + 1e-12)
+        assert lam @ v_c + 0.5 * lam @ w @ lam <= 1e-12
+    assert painleve > 100
 
 
 @pytest.mark.slow

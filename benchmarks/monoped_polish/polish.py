@@ -264,8 +264,10 @@ def touchdown_rows(w, v_n, v_t, sign: float, mu, cone_margin=1.0) -> list[tuple]
     lambda_t = -s mu lambda_n (s the sign of v_t) until v_t stops, before v_n does; then
     stick. With the rates r_n = W_nn - s mu W_nt > 0 and r_t = s (s mu W_tt - W_tn) > 0 of
     v_n and |v_t| per unit lambda_n: |v_t| r_n <= -v_n r_t, and |W_tn| <= mu W_tt for the
-    stick that follows. Numbers or CasADi expressions. (Written as the measured runs wrote
-    them: an algebraically equal rewrite moved IPOPT's path to the iteration cap.)"""
+    stick that follows. Inside the Painleve region (r_n <= 0) the flow also ends in stick
+    (the slip always stops there); r_n >= 1e-3 leaves those landings out. Numbers or CasADi
+    expressions. (Written as the measured runs wrote them: an algebraically equal rewrite
+    moved IPOPT's path to the iteration cap.)"""
     rate_n = w[0, 0] - sign * mu * w[0, 1]
     rate_t = sign * (sign * mu * w[1, 1] - w[1, 0])
     return [(sign * v_t, 0), (rate_n, 1e-3), (rate_t, 1e-3),

@@ -16,7 +16,9 @@ exactly, without any time-freezing:
   impulse P, W = [n B]^T M^{-1} [n B], lambda_t = -mu sign(v_t) while slipping and
   -W_tn / W_tt (if within +-mu) while v_t = 0, until v_n = 0. The flow is piecewise
   linear, so its pieces are exact; it is the velocity the time-freezing auxiliary
-  dynamics M^{-1} (n -+ mu B) a_n reach, with P = a_n tau.
+  dynamics M^{-1} (n -+ mu B) a_n reach, with P = a_n tau. In the Painleve region
+  (W_nn - mu sign(v_t) W_nt <= 0) the slip piece deepens the approach, but the slip
+  always stops (W is positive definite) and the stick piece ends the impact.
 * persistent contact, as the index-reduced DAE ([AUTO23] eqs. (13), (22), (23)):
   slip: lambda_t = -mu lambda_n v_t/||v_t||, lambda_n from n^T v' + (dn/dt)^T v = 0;
   stick: (lambda_n, lambda_t) from the acceleration-level equations of n^T v = 0 and
@@ -745,13 +747,17 @@ def _planar_impulse_flow(w: np.ndarray, vn: float, vt: float, mu: float):
             ratio = -mu * math.copysign(1.0, vt)
         rate_n = w[0, 0] + w[0, 1] * ratio
         rate_t = w[1, 0] + w[1, 1] * ratio
-        if rate_n <= 0:
+        # Inside the Painleve region (rate_n <= 0) the slip drives v_n further down, but
+        # there the slip always stops first: W_nt^2 < W_nn W_tt <= mu |W_nt| W_tt gives
+        # |W_nt| < mu W_tt, so rate_t opposes v_t, and the stick piece (rate_n of the
+        # stick ratio: W's Schur complement, > 0) ends the impact.
+        closes = -vn / rate_n if rate_n > 0 else math.inf
+        stop_at = -vt / rate_t if vt != 0.0 and rate_t * vt < 0 else math.inf
+        if not min(closes, stop_at) < math.inf:
             raise IncompatibleOptions(
                 "the impact jams (Painleve): W_nn + W_nt lambda_t <= 0 while slipping")
-        step = -vn / rate_n
-        stops = vt != 0.0 and rate_t * vt < 0 and -vt / rate_t < step
-        if stops:
-            step = -vt / rate_t
+        stops = stop_at < closes
+        step = stop_at if stops else closes
         lam_n, lam_t = lam_n + step, lam_t + ratio * step
         vn = vn + rate_n * step
         vt = 0.0 if stops else vt + rate_t * step
