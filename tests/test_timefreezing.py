@@ -1009,6 +1009,25 @@ def test_leaning_stick_impact_in_the_painleve_region_stops_slipping_and_sticks(v
     assert abs(lam[1]) <= mu * lam[0]
 
 
+def test_pressed_slip_in_the_painleve_region_starts_with_an_impact_without_collision():
+    """The stick on the ground at theta = 0.6, sliding forward with mu = 1.5 under gravity:
+    the slip's normal force -phi / (W_nn - mu W_nt) would be negative (no consistent
+    force). The reference stops the slip by the impulse flow from v_n = 0: at t = 0,
+    Lambda = -W^-1 (0, v_t), in the cone, both contact velocities zero after it."""
+    mu, theta, v_t = 1.5, 0.6, 1.0
+    x0 = np.array([0.0, 0.5 * np.cos(theta), theta, v_t, 0.0, 0.0])
+    sim = simulate_impacts(_leaning_stick(mu), x0, None, 0.05)
+    assert sim.status == "success"
+    first = sim.impacts[0]
+    assert first.time == 0.0
+    w = _stick_delassus(theta)
+    lam = np.array([first.normal_impulse, first.tangential_impulse[0]])
+    np.testing.assert_allclose(lam, -np.linalg.solve(w, [0.0, v_t]), rtol=1e-12)
+    assert 0 < lam[0] and abs(lam[1]) <= mu * lam[0]
+    np.testing.assert_allclose(_contact_velocity(theta, first.post), 0.0, atol=1e-12)
+    assert sim.modes[0][1] == "stick"
+
+
 def test_impulse_flow_never_jams_and_dissipates():
     """Random positive definite W, friction and landing velocities: the flow ends with
     v_n = 0, an impulse in the cone, and less kinetic energy (Delta T = Lambda^T v_c +

@@ -66,8 +66,10 @@ class PolishOptions:
     """Settings of `polish_contact`.
 
     Args:
-        substeps: RK4 steps per control interval (a piece of an interval gets its share,
-            at least 2).
+        substeps: shooting nodes per control interval (a piece of an interval gets its
+            share, at least 2).
+        steps_per_node: RK4 steps from one node to the next (more accuracy without more
+            variables).
         cone_margins: the continuation of the stick cone |lambda_t| <= c mu lambda_n, each
             NLP warm started from the last. With a slip phase only c = 1: the stick force
             reaches the cone's edge where the slip starts.
@@ -80,6 +82,7 @@ class PolishOptions:
     """
 
     substeps: int = 16
+    steps_per_node: int = 1
     baumgarte: float = 20.0
     painleve_margin: float = 0.05
     cone_margins: tuple[float, ...] = (1.0,)
@@ -94,6 +97,7 @@ class PolishOptions:
 
     def __post_init__(self) -> None:
         positive_int(self.substeps, "substeps")
+        positive_int(self.steps_per_node, "steps_per_node")
         positive_int(self.max_iter, "max_iter")
         if not self.cone_margins or not all(0 < c <= 1 for c in self.cone_margins):
             raise InvalidInput(f"`cone_margins` must be numbers in (0, 1], got "
@@ -439,7 +443,9 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
             if isinstance(h, ca.MX):
                 opti.subject_to(h <= 1.5 * dt / options.substeps)  # no long RK4 steps
             for i in range(n_steps):
-                x_next = dyn.step(mode, x, u_k, h)
+                x_next = x
+                for _ in range(options.steps_per_node):  # RK4 steps between two nodes
+                    x_next = dyn.step(mode, x_next, u_k, h / options.steps_per_node)
                 cost = cost + h / 2 * (running(y_of(x, ta + i * h), u_k)
                                        + running(y_of(x_next, ta + (i + 1) * h), u_k))
                 x = opti.variable(2 * n_q)

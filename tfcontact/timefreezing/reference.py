@@ -25,6 +25,11 @@ exactly, without any time-freezing:
   B^T v = 0. Events: lambda_n = 0 (lift-off), a sign change of v_t along the direction
   it had when the slip phase began (slip -> stick check), ||lambda_t|| = mu lambda_n
   (stick -> slip, slipping along -lambda_t).
+* a planar slip that is pressed (n^T a_free + (dn/dt)^T v < 0) inside the Painleve region
+  (W_nn - mu sign(v_t) W_nt <= 0, no consistent normal force), at its start or where it
+  enters the region: an impact without collision, the impulse flow from v_n = 0, which
+  ends in stick (reported among the impacts). A stick force that leaves the cone where
+  its slip would be in the region raises IncompatibleOptions (a dynamic jam).
 
 Several contacts (a ball in a box) are simulated when every contact is frictionless
 and elastic (e > 0): free flight with one touchdown event per gap, and a Newton impulse
@@ -306,7 +311,25 @@ def simulate_impacts(
     status, message = "success", f"reached T = {T}"
     events_used = 0
     stops = _stops(breakpoints, T)
+    painleve_hit = False
     while t_cur < T:
+        if mode == SLIP and model.n_t == 1 and (
+                painleve_hit or _slip_rate(model, x_cur, control(t_cur), direction) <= 0):
+            # A pressed slip inside the Painleve region has no consistent normal force: an
+            # impact without collision stops it (`_impact_without_collision`).
+            painleve_hit = False
+            u_now = control(t_cur)
+            if abs(model.terms(x_cur, u_now)[2][:, 1] @ x_cur[n:]) <= 1e-12:
+                raise IncompatibleOptions(
+                    f"dynamic jam at t = {t_cur:.6g} s: the stick force leaves the friction "
+                    "cone and the slip it starts lies in the Painleve region")
+            pre = x_cur.copy()
+            x_cur, lam_n, lam_t = _impact_without_collision(model, x_cur, u_now)
+            impacts.append(ReferenceImpact(t_cur, pre, x_cur.copy(), lam_n, lam_t))
+            ts.append(np.array([t_cur]))
+            xs.append(x_cur[None, :])
+            mode, direction = _contact_mode(model, x_cur, u_now, stick_first=True)
+            continue
         if not modes or modes[-1][1] != mode:
             modes.append((t_cur, mode))
         t_stop, segment_control = _segment(control, stops, t_cur)
@@ -347,6 +370,8 @@ def simulate_impacts(
             ts.append(np.array([t_cur]))
             xs.append(x_cur[None, :])
             mode, direction = (_contact_mode(model, x_cur, u_now) if rest else (FREE, None))
+        elif mode == SLIP and len(fired) and max(fired) == 2:  # into the Painleve region
+            painleve_hit = True
         elif 0 in fired:  # lift-off
             mode, direction = FREE, None
         elif mode == SLIP:  # the tangential velocity reached zero
@@ -607,6 +632,31 @@ def _slip_normal_force(model: _Model, x: np.ndarray, u: np.ndarray, that: np.nda
     return -phi / effective
 
 
+def _slip_rate(model: _Model, x: np.ndarray, u: np.ndarray, that: np.ndarray) -> float:
+    """W_nn - mu W_nt that of a planar slip along `that`: the normal acceleration per unit
+    normal force; <= 0 inside the Painleve region."""
+    _, minv_jac, jac, _, _ = model.terms(x, u)
+    minv_n, minv_b, normal, _ = _split(minv_jac, jac)
+    return float(normal[:, 0] @ minv_n[:, 0] - model.mu * normal[:, 0] @ (minv_b @ that))
+
+
+def _impact_without_collision(model: _Model, x: np.ndarray, u: np.ndarray):
+    """The impulse that stops a pressed planar slip inside the Painleve region.
+
+    There the slip has no consistent normal force (lambda_n = -phi / rate < 0). The
+    impulse flow from v_n = 0 slips, which deepens the approach, until v_t stops (it always
+    does, see `_planar_impulse_flow`), then sticks until v_n = 0: both contact velocities
+    end at zero, so Lambda = -W^-1 (v_n, v_t), which lies in the cone (|Lambda_t| /
+    Lambda_n = W_nn / |W_nt| <= mu there).
+    """
+    n = model.n
+    _, minv_jac, jac, _, _ = model.terms(x, u)
+    lam = -np.linalg.solve(jac.T @ minv_jac, jac.T @ x[n:])
+    post = x.copy()
+    post[n:] += minv_jac @ lam
+    return post, float(lam[0]), lam[1:]
+
+
 def _contact_mode(
     model: _Model, x: np.ndarray, u: np.ndarray, stick_first: bool = False,
     force_slip: bool = False,
@@ -696,6 +746,12 @@ def _phase(model: _Model, mode: str, direction, control):
 
             stop.terminal, stop.direction = True, -1
             events.append(stop)
+        if model.n_t == 1:
+            def painleve(t, x):  # the slip enters the Painleve region
+                return _slip_rate(model, x, control(t), direction)
+
+            painleve.terminal, painleve.direction = True, -1
+            events.append(painleve)
         return rhs, events
 
     # STICK
