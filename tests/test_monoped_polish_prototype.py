@@ -112,11 +112,32 @@ def test_touchdown_rows_hold_exactly_when_the_impulse_flow_ends_in_stick(polish)
 
 
 def test_phase_changes_the_re_solve_does_not_model_are_named(polish):
-    with pytest.raises(InvalidInput, match="no 'stick' -> 'flight' change .* lifts off "
+    with pytest.raises(InvalidInput, match="no 'slip-' -> 'stick' change .* lifts off "
                                            "through slip"):
         polish.polish_contact(None, (polish.Phase("stick", 0, 0.5),
-                                     polish.Phase("flight", 0.5, 1)))
+                                     polish.Phase("slip-", 0.5, 0.6),
+                                     polish.Phase("stick", 0.6, 1)))
     with pytest.raises(InvalidInput, match="must start in stick"):
         polish.polish_contact(None, (polish.Phase(polish.FLIGHT, 0, 1),))
     with pytest.raises(InvalidInput, match="cone_margins"):
         polish.PolishOptions(cone_margins=(1.0, 1.2))
+
+
+def test_a_lift_off_straight_from_stick_must_be_at_a_control_jump(polish):
+    """Inside an interval it would need lambda_n = lambda_t = 0 at one switch time."""
+    from types import SimpleNamespace
+
+    from tfcontact.scenes.monoped import monoped_problem
+    shim = SimpleNamespace(problem=monoped_problem("reduced").problem)  # T / N = 0.1 s
+    with pytest.raises(InvalidInput, match=r"at 0\.55 s\) must be at a control jump"):
+        polish.polish_contact(shim, (polish.Phase("stick", 0, 0.55),
+                                     polish.Phase("flight", 0.55, 1)))
+
+
+def test_free_normal_acceleration_is_gravity_plus_push_for_a_particle(polish):
+    """The lift-off row at a control jump: n^T M^-1 (f + u) for a point mass of mass 2."""
+    dyn = polish._Dynamics(point_mass(2, mu=0.5, mass=2.0, controlled=True))
+    x = np.array([0.0, 0.0, 1.0, 0.0])
+    for push in (5.0, 30.0):
+        got = float(dyn.free_normal(x, np.array([0.0, push])))
+        assert got == pytest.approx(push / 2.0 - G, rel=1e-12)

@@ -55,10 +55,12 @@ from tfcontact.ocp.verify import Verification
 
 STICK, FLIGHT = "stick", "flight"
 TRANSITIONS = {(STICK, "slip+"), (STICK, "slip-"), ("slip+", FLIGHT), ("slip-", FLIGHT),
-               (FLIGHT, STICK)}
-"""The phase changes the re-solve models. A foot lifts off through slip: straight from
-stick, lambda_n = 0 with the cone row at the same node forces lambda_t = 0 too, and the
-exact dynamics do not give that."""
+               (FLIGHT, STICK), (STICK, FLIGHT)}
+"""The phase changes the re-solve models. Inside a control interval a foot lifts off
+through slip: straight from stick, lambda_n = 0 with the cone row at the same node would
+force lambda_t = 0 too, and the exact dynamics do not give that. Straight from stick it
+lifts off at a control jump (a grid point k T / N): the new control's free normal
+acceleration n^T M^-1 f + (dn/dt)^T v >= 0 opens the contact."""
 
 
 @dataclass(frozen=True)
@@ -246,6 +248,9 @@ class _Dynamics:
             self.rhs[name] = ca.Function(fname, [x, u], [ca.vertcat(v, a)])
             self.slip_force[name] = ca.Function(fname + "_force", [x, u], [lam_n, rate])
         self.force = ca.Function("force", [x, u], [lam])
+        # the contact's normal acceleration without contact force (>= 0: it opens)
+        self.free_normal = ca.Function(
+            "free_normal", [x, u], [ca.mtimes(jac[:, 0].T, minv_f) + drift[0]])
         self.gap = ca.Function("gap", [x], [contact.gap])
         self.velocity = ca.Function("velocity", [x], [vel])  # (v_n, v_t)
         self.delassus = ca.Function("delassus", [x], [delassus])
@@ -322,15 +327,22 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
     n_q, n_u = cls.n_q, cls.n_u
     n_int, horizon = problem.n_intervals, problem.horizon
     dt = horizon / n_int
+    for before, after in itertools.pairwise(phases):
+        on_grid = abs(after.start / dt - round(after.start / dt)) < 1e-9
+        if (before.mode, after.mode) == (STICK, FLIGHT) and not (
+                on_grid and 0 < round(after.start / dt) < n_int):
+            raise InvalidInput(f"a lift-off straight from stick (at {after.start:.4g} s) must be "
+                               f"at a control jump k T / N (T / N = {dt:g} s); inside an "
+                               "interval the foot lifts off through slip")
     start = time.perf_counter()
 
-    # The plan's physical trajectory as the guess.
-    phys = result.physical
-    guess_x = phys.y[:, list(range(system.q_index.start, system.q_index.stop))
-                     + list(range(system.v_index.start, system.v_index.stop))]
-    guess_t, guess_u = phys.t, result.u
     if guess is not None:  # an earlier polished plan: (t, x, u)
         guess_t, guess_x, guess_u = guess
+    else:  # the plan's physical trajectory
+        phys = result.physical
+        guess_x = phys.y[:, list(range(system.q_index.start, system.q_index.stop))
+                         + list(range(system.v_index.start, system.v_index.stop))]
+        guess_t, guess_u = phys.t, result.u
     y_sym, u_sym = system.y, system.u
     n_y = y_sym.numel()
 
@@ -366,7 +378,15 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
     switches = []
     switch_interval = []
     fractions = []
-    for phase in phases[1:]:
+    grid_lift_offs = {}  # control interval k -> index j in phases[1:] of a flight from k T / N
+    for j, (before, phase) in enumerate(itertools.pairwise(phases)):
+        if (before.mode, phase.mode) == (STICK, FLIGHT):
+            k = round(phase.start / dt)
+            grid_lift_offs[k] = j
+            switches.append((grid[k], grid_guess[k]))  # fixed: no switch variable
+            switch_interval.append(-1)
+            fractions.append(None)
+            continue
         k = int(np.clip(np.searchsorted(grid_guess, phase.start, side="right") - 1, 0, n_int - 1))
         fraction = opti.variable()
         m = options.switch_margin
@@ -431,6 +451,9 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
 
     for k in range(n_int):
         u_k = controls[k, :].T
+        if k in grid_lift_offs:  # the control jump opens the contact
+            opti.subject_to(dyn.free_normal(x, u_k) >= 0)
+            mode_index = grid_lift_offs[k] + 1
         inside = [j for j, ki in enumerate(switch_interval) if ki == k]
         cuts = ([(grid[k], grid_guess[k], None)]
                 + [(switches[j][0], switches[j][1], j) for j in inside]
@@ -523,7 +546,8 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
     node_x = np.array([np.asarray(sol.value(xn)).ravel() for _, xn in nodes])
     times = np.array([float(sol.value(tn)) if isinstance(tn, ca.MX) else float(tn)
                       for tn, _ in nodes])
-    switch_values = [float(sol.value(s)) for s, _ in switches]
+    switch_values = [float(sol.value(s)) if isinstance(s, ca.MX) else float(s)
+                     for s, _ in switches]
     clocks = grid_guess
     boundary_x = np.array([np.asarray(sol.value(b)).ravel() for b in boundary])
     forces = np.array([np.asarray(dyn.force(sol.value(xs), sol.value(us))).ravel()

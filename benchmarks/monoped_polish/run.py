@@ -1,9 +1,10 @@
 """PROTOTYPE driver (see polish.py): the reduced TF-9 monoped's relaxed plan, then the
 exact re-solve along stick -> slip- -> flight -> stick, warm started step by step.
 
-    PYTHONPATH=benchmarks/monoped_polish python benchmarks/monoped_polish/run.py 16:0 32:0
+    PYTHONPATH=benchmarks/monoped_polish python benchmarks/monoped_polish/run.py 16:0 16:0:2
 
-Each argument `substeps:painleve_margin` is one more re-solve from the previous one.
+Each argument `substeps:painleve_margin[:steps_per_node]` is one more re-solve from the
+previous one.
 """
 
 import dataclasses
@@ -30,12 +31,15 @@ phases = (Phase("stick", 0.0, 0.55), Phase("slip-", 0.55, lift_off),
 plan = polish_contact(relaxed, phases, PolishOptions(substeps=8, max_iter=3000,
                                                      painleve_margin=0.0))
 for argument in sys.argv[1:]:
-    substeps, margin = int(argument.split(":")[0]), float(argument.split(":")[1])
+    fields = argument.split(":")
+    substeps, margin = int(fields[0]), float(fields[1])
+    per_node = int(fields[2]) if len(fields) > 2 else 1
     start = time.perf_counter()
     plan = polish_contact(relaxed, plan.phases,
-                          PolishOptions(substeps=substeps, max_iter=3000,
-                                        painleve_margin=margin),
+                          PolishOptions(substeps=substeps, steps_per_node=per_node,
+                                        max_iter=3000, painleve_margin=margin),
                           guess=(plan.t, plan.x, plan.u))
-    print(f"substeps {substeps}, Painleve margin {margin}: {time.perf_counter() - start:.1f} s")
+    print(f"substeps {substeps} x {per_node} RK4 steps, Painleve margin {margin}: "
+          f"{time.perf_counter() - start:.1f} s")
     print("local defects", np.array2string(np.asarray(plan.verification.local_defects),
                                            precision=3), flush=True)
