@@ -1028,6 +1028,23 @@ def test_pressed_slip_in_the_painleve_region_starts_with_an_impact_without_colli
     assert sim.modes[0][1] == "stick"
 
 
+def test_a_start_inside_the_ground_that_opens_slowly_lands_back_instead_of_falling_through():
+    """A plan's state may lie a little inside the ground and separate at round-off speed
+    (a restart of the local defects). The particle 1e-6 m inside, rising at 1e-5 m/s under
+    gravity, lands back at its start's depth within 2 v / g (DOP853's first step may
+    already cover the 2 microsecond hop: the event then sits at t = 0) and rests there: it
+    must not fall through the ground (the touchdown event, gap = 0 from above, cannot
+    fire below the surface; without the fix it ends 4.9 cm down)."""
+    depth, rise = 1e-6, 1e-5
+    sim = simulate_impacts(point_mass(2, mu=0.5), [0.0, -depth, 0.3, rise], None, 0.1,
+                           start_gap_tolerance=1e-3)
+    assert sim.status == "success"
+    (impact,) = sim.impacts
+    assert 0.0 <= impact.time <= 2 * rise / G * (1 + 1e-6)
+    assert sim.x[-1, 1] == pytest.approx(-depth, abs=1e-9)
+    assert [mode for _, mode in sim.modes][-2:] == ["slip", "stick"]  # slides 0.3 m/s, stops
+
+
 def test_impulse_flow_never_jams_and_dissipates():
     """Random positive definite W, friction and landing velocities: the flow ends with
     v_n = 0, an impulse in the cone, and less kinetic energy (Delta T = Lambda^T v_c +

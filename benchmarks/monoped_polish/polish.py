@@ -434,6 +434,9 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
             w = dyn.delassus(x)
             opti.subject_to(w[0, 0] - dyn.mu * w[0, 1] >= options.painleve_margin)
             opti.subject_to(w[0, 0] + dyn.mu * w[0, 1] >= options.painleve_margin)
+        contact_rows(x, u, mode)
+
+    def contact_rows(x, u, mode):
         if mode == STICK:
             lam = dyn.force(x, u)
             stick_forces.append((x, u))
@@ -454,6 +457,10 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
         if k in grid_lift_offs:  # the control jump opens the contact
             opti.subject_to(dyn.free_normal(x, u_k) >= 0)
             mode_index = grid_lift_offs[k] + 1
+        elif k > 0 and phases[mode_index].mode != FLIGHT:
+            # the contact holds on both sides of the control jump: its rows with the new
+            # control too (else the foot may lift off at the jump while the plan sticks)
+            contact_rows(x, u_k, phases[mode_index].mode)
         inside = [j for j, ki in enumerate(switch_interval) if ki == k]
         cuts = ([(grid[k], grid_guess[k], None)]
                 + [(switches[j][0], switches[j][1], j) for j in inside]

@@ -256,8 +256,9 @@ def simulate_impacts(
             control (a push can lift the foot off or break sticking).
         start_gap_tolerance: x0 may lie this far inside the obstacle [m] (a plan's state
             in the middle of an impact); a contact at or inside the surface at x0 that
-            closes faster than `rest_velocity` takes its impact at t = 0. A positive gap,
-            however small, starts in free flight.
+            closes faster than `rest_velocity` takes its impact at t = 0; one that opens
+            faster starts in free flight and lands back at its start's depth. A positive
+            gap, however small, starts in free flight.
 
     Returns:
         A `ReferenceSimulation`.
@@ -312,6 +313,10 @@ def simulate_impacts(
     events_used = 0
     stops = _stops(breakpoints, T)
     painleve_hit = False
+    # A start inside the surface (within the tolerance) that opens: its flight lands back at
+    # the start's depth, else the touchdown event (gap = 0 from above) could never fire and
+    # the foot would fall through the ground.
+    surface = min(gap0, 0.0) if mode == FREE and on_surface else 0.0
     while t_cur < T:
         if mode == SLIP and model.n_t == 1 and (
                 painleve_hit or _slip_rate(model, x_cur, control(t_cur), direction) <= 0):
@@ -333,7 +338,7 @@ def simulate_impacts(
         if not modes or modes[-1][1] != mode:
             modes.append((t_cur, mode))
         t_stop, segment_control = _segment(control, stops, t_cur)
-        rhs, events = _phase(model, mode, direction, segment_control)
+        rhs, events = _phase(model, mode, direction, segment_control, surface)
         try:
             with np.errstate(under="ignore"):  # scipy's step-size floor at t = 0 underflows
                 sol = solve_ivp(rhs, (t_cur, t_stop), x_cur, method="DOP853", rtol=rtol,
@@ -364,6 +369,7 @@ def simulate_impacts(
         if mode == FREE and t_cur >= T - _END_TIME_TOLERANCE * max(T, 1.0):
             break  # an impact at T: reported in end_impacts, not applied (see there)
         if mode == FREE:
+            surface = 0.0
             pre = x_cur.copy()
             x_cur, lam_n, lam_t, rest = _impact(model, x_cur, u_now, rest_velocity)
             impacts.append(ReferenceImpact(t_cur, pre, x_cur.copy(), lam_n, lam_t))
@@ -695,7 +701,7 @@ def _zero_tangential(model: _Model, x: np.ndarray, u: np.ndarray) -> np.ndarray:
     return x
 
 
-def _phase(model: _Model, mode: str, direction, control):
+def _phase(model: _Model, mode: str, direction, control, surface: float = 0.0):
     n = model.n
     mu = model.mu
 
@@ -708,7 +714,7 @@ def _phase(model: _Model, mode: str, direction, control):
             return np.concatenate([x[n:], model.terms(x, control(t))[0]])
 
         def touchdown(t, x):
-            return model.terms(x, control(t))[4]
+            return model.terms(x, control(t))[4] - surface
 
         touchdown.terminal, touchdown.direction = True, -1
         return rhs, [touchdown]
