@@ -72,6 +72,9 @@ class PolishOptions:
             share, at least 2).
         steps_per_node: RK4 steps from one node to the next (more accuracy without more
             variables).
+        expand: expand the whole NLP into one SX graph (fast per iteration; the full task
+            with 16 x 4 RK4 steps took more than 16 GB to build). False: each RK4 step is
+            one SX function called from an MX graph (small, slower per iteration).
         cone_margins: the continuation of the stick cone |lambda_t| <= c mu lambda_n, each
             NLP warm started from the last. With a slip phase only c = 1: the stick force
             reaches the cone's edge where the slip starts.
@@ -85,6 +88,7 @@ class PolishOptions:
 
     substeps: int = 16
     steps_per_node: int = 1
+    expand: bool = True
     baumgarte: float = 20.0
     painleve_margin: float = 0.05
     cone_margins: tuple[float, ...] = (1.0,)
@@ -256,6 +260,21 @@ class _Dynamics:
         self.delassus = ca.Function("delassus", [x], [delassus])
         impulse = -ca.solve(delassus, vel)
         self.impact = ca.Function("impact", [x], [ca.vertcat(q, v + minv_j @ impulse), impulse])
+        self._rk4: dict = {}
+
+    def rk4(self, mode: str, steps: int) -> ca.Function:
+        """`steps` RK4 steps of length h / steps as one SX function (x, u, h) -> x+."""
+        key = (mode, steps)
+        if key not in self._rk4:
+            x = ca.SX.sym("x", self.rhs[mode].size1_in(0))
+            u = ca.SX.sym("u", self.rhs[mode].size1_in(1))
+            h = ca.SX.sym("h")
+            end = x
+            for _ in range(steps):
+                end = self.step(mode, end, u, h / steps)
+            self._rk4[key] = ca.Function(f"rk4_{mode.replace('+', 'p').replace('-', 'm')}"
+                                         f"_{steps}", [x, u, h], [end])
+        return self._rk4[key]
 
     def step(self, mode: str, x, u, h):
         f = self.rhs[mode]
@@ -473,9 +492,12 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
             if isinstance(h, ca.MX):
                 opti.subject_to(h <= 1.5 * dt / options.substeps)  # no long RK4 steps
             for i in range(n_steps):
-                x_next = x
-                for _ in range(options.steps_per_node):  # RK4 steps between two nodes
-                    x_next = dyn.step(mode, x_next, u_k, h / options.steps_per_node)
+                if options.expand:
+                    x_next = x
+                    for _ in range(options.steps_per_node):  # RK4 steps between two nodes
+                        x_next = dyn.step(mode, x_next, u_k, h / options.steps_per_node)
+                else:
+                    x_next = dyn.rk4(mode, options.steps_per_node)(x, u_k, h)
                 cost = cost + h / 2 * (running(y_of(x, ta + i * h), u_k)
                                        + running(y_of(x_next, ta + (i + 1) * h), u_k))
                 x = opti.variable(2 * n_q)
@@ -515,7 +537,7 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
                                      terminal_fn(y_end),
                                      np.broadcast_to(terminal.upper, terminal.expression.shape[0])))
     opti.minimize(cost + terminal_cost(y_end))
-    opti.solver("ipopt", {"print_time": False, "expand": True},
+    opti.solver("ipopt", {"print_time": False, "expand": options.expand},
                 {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0,
                  "sb": "yes"})
     history = []
