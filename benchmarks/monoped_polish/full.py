@@ -26,10 +26,10 @@ import types
 from pathlib import Path
 
 import numpy as np
-from polish import Phase, PolishOptions, contact_phases, polish_contact
+from polish import Phase, PolishOptions, polish_contact
+from run import first_hop
 
-from tfcontact.ocp.contact import solve_contact
-from tfcontact.scenes.monoped import FULL_TASK, monoped_options, monoped_problem
+from tfcontact.scenes.monoped import FULL_TASK, monoped_problem
 
 LIFT_OFFS = (0.5, 1.25, 2.0)
 FLIGHT = 0.26
@@ -38,18 +38,7 @@ REDUCED_LIFT_OFF, REDUCED_TOUCHDOWN = 0.6, 0.89
 
 def reduced_hop():
     """`run.py 16:0 16:0:2`: the reduced task's verified exact plan."""
-    mp = monoped_problem("reduced")
-    options = monoped_options("reduced")
-    options = dataclasses.replace(
-        options, homotopy=dataclasses.replace(options.homotopy, max_refinements=3),
-        nlp=dataclasses.replace(options.nlp, options={"mu_strategy": "adaptive"},
-                                element_derivatives=True, threads=1, intermediate_tol=0.1))
-    relaxed = solve_contact(mp.problem, options, verbose=False)
-    found = contact_phases(relaxed)
-    lift_off = found[1].start
-    phases = (Phase("stick", 0.0, 0.55), Phase("slip-", 0.55, lift_off),
-              Phase("flight", lift_off, found[1].end), Phase("stick", found[2].start, 1.0))
-    plan = polish_contact(relaxed, phases, PolishOptions(substeps=8, painleve_margin=0.0))
+    relaxed, plan = first_hop()
     for per_node in (1, 2):
         plan = polish_contact(relaxed, plan.phases,
                               PolishOptions(substeps=16, steps_per_node=per_node,
