@@ -141,3 +141,41 @@ def test_free_normal_acceleration_is_gravity_plus_push_for_a_particle(polish):
     for push in (5.0, 30.0):
         got = float(dyn.free_normal(x, np.array([0.0, push])))
         assert got == pytest.approx(push / 2.0 - G, rel=1e-12)
+
+
+@pytest.fixture(scope="module")
+def saved_full_plan():
+    return np.load(PROTOTYPE.parent / "monoped_exact_plan.npz")
+
+
+def test_the_saved_full_plan_meets_tf9_and_passes_the_exact_replay(load_script,
+                                                                   saved_full_plan,
+                                                                   monkeypatch):
+    """benchmarks/monoped_exact_plan.npz (full.py's verified TF-9 plan): from q0 at rest to
+    the goal within |u| <= 60, TF-9's ellipses kept at its nodes, and each control
+    interval's exact replay from the plan's own state within the tolerance in sum."""
+    plan = saved_full_plan
+    boundary, u = plan["boundary"], plan["u"]
+    np.testing.assert_allclose(boundary[0], [0, 0.4, 0, 0, 0, 0, 0, 0], atol=1e-9)
+    np.testing.assert_allclose(boundary[-1][:4], [3.0, 0.4, 0.0, 0.0], atol=1e-6)
+    assert u.shape == (20, 2) and np.abs(u).max() <= 60 + 1e-9
+    monkeypatch.syspath_prepend(str(PROTOTYPE))  # verify.py imports polish
+    verify = load_script("verify", PROTOTYPE)
+    verification, holes = verify.verify_saved(PROTOTYPE.parent / "monoped_exact_plan.npz")
+    assert verification.passed and verification.open_loop_unstable
+    assert verification.defect_sum < 5e-2
+    assert holes >= -1e-6 and verification.min_gap >= -1e-3
+
+
+def test_the_saved_full_plan_fails_with_one_control_moved(load_script, saved_full_plan,
+                                                          tmp_path, monkeypatch):
+    """The replay check can fail: 0.5 N m more hip torque in one stance interval."""
+    moved = dict(saved_full_plan)
+    moved["u"] = moved["u"].copy()
+    moved["u"][4, 0] += 0.5
+    np.savez(tmp_path / "moved.npz", **moved)
+    monkeypatch.syspath_prepend(str(PROTOTYPE))  # verify.py imports polish
+    verify = load_script("verify", PROTOTYPE)
+    verification, _ = verify.verify_saved(tmp_path / "moved.npz")
+    assert not verification.passed
+    assert verification.local_defects[4] > 5e-2
