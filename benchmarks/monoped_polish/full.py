@@ -16,7 +16,12 @@ with the exact hybrid dynamics, seeded by the reduced task's hop.
    last; the touchdowns are free. (16 x 4 steps took more than 16 GB to build.)
 
 Writes OUT/plan.npz (node times, states, controls, boundary states, phases) and prints
-each re-solve's summary. About 40 minutes on one core.
+each re-solve's summary. The IPOPT paths are fragile: the run that made
+benchmarks/monoped_exact_plan.npz (the same chain through scratch drivers) took 320, 72
+and 2450 iterations for the three full-task re-solves (about 35 minutes in all); a rerun
+of this script took 1021 iterations for the first (another local solution, objective
+232.862 against 232.976), and its second stopped at the 3000-iteration cap (41 minutes in
+all, nlp_failed; benchmarks/monoped_settings.md).
 """
 
 import dataclasses
