@@ -25,11 +25,15 @@ exactly, without any time-freezing:
   B^T v = 0. Events: lambda_n = 0 (lift-off), a sign change of v_t along the direction
   it had when the slip phase began (slip -> stick check), ||lambda_t|| = mu lambda_n
   (stick -> slip, slipping along -lambda_t).
-* a planar slip that is pressed (n^T a_free + (dn/dt)^T v < 0) inside the Painleve region
-  (W_nn - mu sign(v_t) W_nt <= 0, no consistent normal force), at its start or where it
-  enters the region: an impact without collision, the impulse flow from v_n = 0, which
-  ends in stick (reported among the impacts). A stick force that leaves the cone where
-  its slip would be in the region raises IncompatibleOptions (a dynamic jam).
+* a planar slip that starts pressed (n^T a_free + (dn/dt)^T v < 0) inside the Painleve
+  region (W_nn - mu sign(v_t) W_nt <= 0, no consistent normal force): an impact without
+  collision, the impulse flow from v_n = 0, which ends in stick (reported among the
+  impacts). A stick force that leaves the cone where its slip would be in the region
+  raises IncompatibleOptions (a dynamic jam). A slip that runs into the region is not
+  resolved: its normal force grows without bound at the region's edge, where the lift-off
+  event fires (a free flight of ~1e-7 s and a touchdown follow), the events cascade
+  (status "max_events") or the integration stops with InvalidInput (Painleve's rod,
+  mu = 2, 24 slips started towards the region: 8, 2 and 14 of them).
 
 Several contacts (a ball in a box) are simulated when every contact is frictionless
 and elastic (e > 0): free flight with one touchdown event per gap, and a Newton impulse
@@ -312,17 +316,14 @@ def simulate_impacts(
     status, message = "success", f"reached T = {T}"
     events_used = 0
     stops = _stops(breakpoints, T)
-    painleve_hit = False
     # A start inside the surface (within the tolerance) that opens: its flight lands back at
     # the start's depth, else the touchdown event (gap = 0 from above) could never fire and
     # the foot would fall through the ground.
     surface = min(gap0, 0.0) if mode == FREE and on_surface else 0.0
     while t_cur < T:
-        if mode == SLIP and model.n_t == 1 and (
-                painleve_hit or _slip_rate(model, x_cur, control(t_cur), direction) <= 0):
+        if mode == SLIP and _slip_in_painleve_region(model, x_cur, control(t_cur), direction):
             # A pressed slip inside the Painleve region has no consistent normal force: an
             # impact without collision stops it (`_impact_without_collision`).
-            painleve_hit = False
             u_now = control(t_cur)
             if abs(model.terms(x_cur, u_now)[2][:, 1] @ x_cur[n:]) <= 1e-12:
                 raise IncompatibleOptions(
@@ -376,8 +377,6 @@ def simulate_impacts(
             ts.append(np.array([t_cur]))
             xs.append(x_cur[None, :])
             mode, direction = (_contact_mode(model, x_cur, u_now) if rest else (FREE, None))
-        elif mode == SLIP and len(fired) and max(fired) == 2:  # into the Painleve region
-            painleve_hit = True
         elif 0 in fired:  # lift-off
             mode, direction = FREE, None
         elif mode == SLIP:  # the tangential velocity reached zero
@@ -628,22 +627,26 @@ def _stick_forces(model: _Model, x: np.ndarray, u: np.ndarray) -> np.ndarray:
     return np.linalg.solve(delassus, -rhs)
 
 
+def _slip_rate(model: _Model, minv_jac: np.ndarray, jac: np.ndarray, that) -> float:
+    """n^T M^-1 (n - mu B that), W_nn - mu W_nt that in the plane: the normal acceleration
+    per unit normal force of a slip along `that`; <= 0 inside the Painleve region."""
+    minv_n, minv_b, normal, _ = _split(minv_jac, jac)
+    rate = normal[:, 0] @ minv_n[:, 0]
+    if model.n_t:
+        rate -= model.mu * normal[:, 0] @ (minv_b @ that)
+    return float(rate)
+
+
+def _slip_in_painleve_region(model: _Model, x: np.ndarray, u: np.ndarray, that) -> bool:
+    if model.n_t != 1:
+        return False
+    _, minv_jac, jac, _, _ = model.terms(x, u)
+    return _slip_rate(model, minv_jac, jac, that) <= 0
+
+
 def _slip_normal_force(model: _Model, x: np.ndarray, u: np.ndarray, that: np.ndarray) -> float:
     a_free, minv_jac, jac, drift, _ = model.terms(x, u)
-    minv_n, minv_b, normal, _ = _split(minv_jac, jac)
-    phi = normal[:, 0] @ a_free + drift[0]
-    effective = normal[:, 0] @ minv_n[:, 0]
-    if model.n_t:
-        effective -= model.mu * normal[:, 0] @ (minv_b @ that)
-    return -phi / effective
-
-
-def _slip_rate(model: _Model, x: np.ndarray, u: np.ndarray, that: np.ndarray) -> float:
-    """W_nn - mu W_nt that of a planar slip along `that`: the normal acceleration per unit
-    normal force; <= 0 inside the Painleve region."""
-    _, minv_jac, jac, _, _ = model.terms(x, u)
-    minv_n, minv_b, normal, _ = _split(minv_jac, jac)
-    return float(normal[:, 0] @ minv_n[:, 0] - model.mu * normal[:, 0] @ (minv_b @ that))
+    return -(jac[:, 0] @ a_free + drift[0]) / _slip_rate(model, minv_jac, jac, that)
 
 
 def _impact_without_collision(model: _Model, x: np.ndarray, u: np.ndarray):
@@ -752,12 +755,6 @@ def _phase(model: _Model, mode: str, direction, control, surface: float = 0.0):
 
             stop.terminal, stop.direction = True, -1
             events.append(stop)
-        if model.n_t == 1:
-            def painleve(t, x):  # the slip enters the Painleve region
-                return _slip_rate(model, x, control(t), direction)
-
-            painleve.terminal, painleve.direction = True, -1
-            events.append(painleve)
         return rhs, events
 
     # STICK
