@@ -165,6 +165,16 @@ def test_the_saved_full_plan_meets_tf9_and_passes_the_exact_replay(load_script,
     assert verification.passed and verification.open_loop_unstable
     assert verification.defect_sum < 5e-2
     assert holes >= -1e-6 and verification.min_gap >= -1e-3
+    # The cone on the forces and impulses recomputed from the states and controls: three
+    # landings, stick forces pressing and inside the cone (mu = 0.8) up to round-off.
+    from tfcontact.scenes.monoped import monoped_problem
+    # the reduced task's robot, ground and friction are the full task's
+    dyn = load_script("polish", PROTOTYPE)._Dynamics(monoped_problem("reduced").system.cls)
+    forces, impulses = verify.contact_values(plan, dyn, 2.5)
+    assert len(impulses) == 3 and len(forces) > 300
+    both = np.vstack([forces, impulses])
+    assert both[:, 0].min() > 0
+    assert np.all(np.abs(both[:, 1]) <= 0.8 * both[:, 0] + 1e-6)
 
 
 def test_the_saved_full_plan_fails_with_one_control_moved(load_script, saved_full_plan,

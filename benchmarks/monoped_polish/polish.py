@@ -18,16 +18,19 @@ of phases and re-solves the OCP as a smooth NLP with the original system's dynam
 * slip with sign s ("slip+", "slip-"): M a = f + (n - s mu B) lambda_n, the same normal
   row; lambda_n >= 0, s v_t >= 0, W_nn - s mu W_nt >= 1e-2 (a unique normal force);
 * flight: M a = f, gap >= 0;
-* stick -> slip where lambda_t = -s mu lambda_n; stick or slip -> flight where
-  lambda_n = 0 (a foot lifts off through slip: from stick, lambda_n = 0 with the cone
-  row at the same node would force lambda_t = 0 too);
+* stick -> slip where lambda_t = -s mu lambda_n; slip -> flight where lambda_n = 0;
+  stick -> flight only at a control jump k T / N, where the new control's free normal
+  acceleration n^T M^-1 f + (dn/dt)^T v >= 0 (inside an interval, lambda_n = 0 with the
+  cone row at the same node would force lambda_t = 0 too); inside a contact phase the
+  contact rows hold with both controls at each control jump;
 * touchdown into stick: gap = 0 and the reference's impulse flow stopping the slip before
   the normal velocity (|v_t| r_n <= -v_n r_t, r_n = W_nn - s mu W_nt, r_t = mu W_tt -
   s W_tn, then |W_tn| <= mu W_tt); the post-impact state has J v+ = 0.
 
 Controls are piecewise constant on the fixed grid k T / N; each control interval is cut at
-the switches inside it and every piece integrated by RK4 (`substeps` per interval, steps
-at most 1.5 T / (N substeps)), multiple shooting. Optional Painleve margin
+the switches inside it and every piece integrated by RK4 (`substeps` shooting nodes per
+interval, `steps_per_node` RK4 steps between two, nodes at most 1.5 T / (N substeps)
+apart), multiple shooting. Optional Painleve margin
 W_nn -+ mu W_nt >= delta at contact nodes. The result is checked like a time-freezing plan
 (replay, local defects, kicked sensitivity).
 """
@@ -46,6 +49,7 @@ from tfcontact.ocp.contact import (
     LOCAL_DEFECT_IMPACT_WINDOW,
     ContactProblem,
     ContactResult,
+    ContactSolverOptions,
     ReplayedPlan,
     _end_state_check,
     _local_defects,
@@ -97,9 +101,10 @@ class PolishOptions:
     switch_margin: float = 1e-3
     tol: float = 1e-9
     max_iter: int = 3000
-    end_state_tolerance: float = 5e-2
-    gap_tolerance: float = 1e-3
-    cone_tolerance: float = 1e-2
+    # the verification's tolerances of a time-freezing plan
+    end_state_tolerance: float = ContactSolverOptions.end_state_tolerance
+    gap_tolerance: float = ContactSolverOptions.gap_tolerance
+    cone_tolerance: float = ContactSolverOptions.cone_tolerance
 
     def __post_init__(self) -> None:
         positive_int(self.substeps, "substeps")
@@ -190,8 +195,8 @@ def contact_phases(result: ContactResult, options: PolishOptions | None = None
                    ) -> tuple[Phase, ...]:
     """The stick and flight phases of a time-freezing plan: stick while the gap stays below
     `flight_gap`, flight from the last sample before it rises above it until it falls
-    below `contact_gap` again (one contact). `polish_contact` needs a slip phase before
-    each lift-off in addition (see `TRANSITIONS`)."""
+    below `contact_gap` again (one contact). For `polish_contact` a lift-off needs a slip
+    phase before it or a start at a control jump (see `TRANSITIONS`)."""
     options = options or PolishOptions()
     system = result.physical.system
     cls = system.cls
