@@ -13,23 +13,32 @@ def test_plan_list_names_the_hopper(capsys):
     assert main(["plan", "--list"]) == 0
     out = capsys.readouterr().out
     assert "hopper" in out and "--task long" in out
-    assert "monoped" in out and "--task reduced" in out and "not solved yet" in out
+    assert "monoped" in out and "--task reduced" in out and "exact re-solve" in out
 
 
-def test_monoped_plan_builds_its_tasks():
-    """The CLI's monoped plan is TF-9 from the URDF: the full task by default (3 stages,
-    three holes in the sidecar's scene), the reduced one on request (2 stages, one hole)."""
-    full = PLANS["monoped"].build(None)
-    assert full.robot.nq == 4 and full.problem.n_intervals == 20
-    assert full.problem.horizon == 2.5
-    assert full.options.scheme == RadauIIA(3)
-    assert [h["x_c"] for h in full.scene["holes"]] == [0.5, 1.5, 2.5]
-    assert full.scene["terrain"]["height"] == pytest.approx(-0.028)
-    reduced = PLANS["monoped"].build("reduced")
-    assert reduced.problem.n_intervals == 10 and reduced.options.scheme == RadauIIA(2)
-    assert [h["x_c"] for h in reduced.scene["holes"]] == [0.5]
+def test_monoped_plan_is_tf9_from_the_urdf():
+    """The CLI's monoped plan solves TF-9 from the URDF with its own chain (no attempts to
+    set): the full task by default, T = 2.5 s, N = 20, three elliptic holes, the ground
+    lowered by the foot's radius in the sidecar's scene."""
+    from tfcontact.scenes.monoped import monoped_problem
+    from tfcontact.scenes.monoped_exact import EXACT_TASK
+
+    plan = PLANS["monoped"]
+    assert plan.solve is not None and plan.tasks == ("full", "reduced")
+    mp = monoped_problem(EXACT_TASK)
+    assert mp.robot.nq == 4 and mp.problem.n_intervals == 20 and mp.problem.horizon == 2.5
+    scene = mp.scene()
+    assert [h["x_c"] for h in scene["holes"]] == [0.5, 1.5, 2.5]
+    assert {h["form"] for h in scene["holes"]} == {"ellipse"}
+    assert scene["terrain"]["height"] == pytest.approx(-0.028)
+    assert monoped_options("full").scheme == RadauIIA(3)
     with pytest.raises(InvalidInput, match="unknown monoped task 'sprint'; tasks: full, reduced"):
         monoped_options("sprint")
+
+
+def test_monoped_refuses_attempts(capsys, tmp_path):
+    assert main(["plan", "monoped", "--attempts", "2", "--out", str(tmp_path), "--quiet"]) == 1
+    assert "plan `monoped` has no attempts to set" in capsys.readouterr().err
 
 
 def test_unknown_plan_and_task_are_named(capsys, tmp_path):

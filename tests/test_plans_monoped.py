@@ -46,8 +46,9 @@ def test_hole_values_sign():
 
 
 def test_script_defaults_are_the_cli_plan(monkeypatch, load_script):
-    """`scripts/monoped.py` without flags (and with `--quick`) solves the same task with the
-    same settings as `tfcontact plan monoped` (`--task reduced`): one source of both."""
+    """`scripts/monoped.py` without flags (and with `--quick`) solves the time-freezing OCP
+    of `monoped_problem` with `monoped_options` (the full and the reduced task): one source
+    of the task data and settings."""
     script = load_script("monoped")
     seen = {}
 

@@ -42,13 +42,28 @@ class PlanSetup:
 
 
 @dataclass(frozen=True)
+class PlanOutcome:
+    """What a plan's own solver returns to `run_plan`: the trajectory to write, the robot
+    for the replay, the status, a summary text and files it wrote itself."""
+
+    trajectory: Any
+    robot: Any
+    status: str
+    success: bool
+    summary: str
+    files: tuple[Path, ...] = ()
+
+
+@dataclass(frozen=True)
 class Plan:
-    """A named robot plan: `build(task)` gives its `PlanSetup` (task None: the first)."""
+    """A named robot plan: `build(task)` gives its `PlanSetup` (task None: the first),
+    solved by `solve_contact`; or `solve(task, out, verbose)` solves it its own way."""
 
     name: str
     summary: str
-    build: Callable[[str | None], PlanSetup]
+    build: Callable[[str | None], PlanSetup] | None
     tasks: tuple[str, ...]
+    solve: Callable[[str, Path, bool], PlanOutcome] | None = None
 
 
 def _flat(ground: Any) -> dict:
@@ -63,11 +78,37 @@ def _hopper(task: str | None) -> PlanSetup:
     return PlanSetup(robot, problem, hopper_options(task or "short"), _flat(ground))
 
 
-def _monoped(task: str | None) -> PlanSetup:
-    from tfcontact.scenes.monoped import monoped_options, monoped_problem
+def _monoped(task: str, out: Path, verbose: bool) -> PlanOutcome:
+    """The two-stage chain of `tfcontact.scenes.monoped_exact`: the time-freezing homotopy
+    finds the reduced task's hop, the exact re-solve makes it a verified plan ("reduced"),
+    tiled three times for TF-9's task ("full")."""
+    from tfcontact.scenes.monoped_exact import (
+        full_exact_plan,
+        plot_exact_plan,
+        reduced_exact_plan,
+        save_exact_plan,
+    )
+    from tfcontact.viz.plan import trajectory_from_polished
 
-    mp = monoped_problem(task or "full")
-    return PlanSetup(mp.robot, mp.problem, monoped_options(task or "full"), mp.scene())
+    chain = full_exact_plan(verbose) if task == "full" else reduced_exact_plan(verbose)
+    mp = chain.problem
+    if verbose:
+        print(chain.summary(), flush=True)
+    if chain.plan is None:
+        return PlanOutcome(None, mp.robot, chain.status, False, chain.summary())
+    files = (save_exact_plan(chain.plan, out / "plan.npz"),
+             plot_exact_plan(chain.plan, mp, out / "path.png"))
+    solver = {"status": chain.status, "message": chain.message,
+              "objective": chain.plan.cost, "wall_time": chain.wall_time,
+              "smallest_hole_value": chain.smallest_hole_value,
+              "phases": [dataclasses.asdict(p) for p in chain.plan.phases],
+              "steps": [dataclasses.asdict(step) for step in chain.steps],
+              "method": "exact re-solve along a contact sequence (tfcontact.ocp.polish): "
+                        "RK4 multiple shooting on the fixed control grid"}
+    trajectory = trajectory_from_polished(chain.plan, mp.system.cls, mp.robot.spec,
+                                          mp.scene(), solver=solver)
+    return PlanOutcome(trajectory, mp.robot, chain.status, chain.success, chain.summary(),
+                       files)
 
 
 PLANS: dict[str, Plan] = {
@@ -81,10 +122,11 @@ PLANS: dict[str, Plan] = {
     "monoped": Plan(
         name="monoped",
         summary="Capler monoped (robots/monoped.urdf), TF-9: hop over three holes to x = 3 "
-                "(--task reduced: one hole, to x = 1); not solved yet: its plans fail "
-                "the verification (exit status 1)",
-        build=_monoped,
+                "(35-55 min; --task reduced: one hole, to x = 1, 6 min): time-freezing "
+                "homotopy, then the exact re-solve along its contact sequence",
+        build=None,
         tasks=("full", "reduced"),
+        solve=_monoped,
     ),
 }
 
@@ -98,7 +140,6 @@ def run_plan(name: str, out_dir: Path | str, *, task: str | None = None,
     status), so that no output is lost.
     """
     from tfcontact.ocp.contact import solve_contact
-    from tfcontact.viz import plot_trajectory, replay, save_trajectory
     from tfcontact.viz.plan import trajectory_from_result
 
     if name not in PLANS:
@@ -109,6 +150,12 @@ def run_plan(name: str, out_dir: Path | str, *, task: str | None = None,
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
+    if plan.solve is not None:
+        if attempts is not None:
+            raise InvalidInput(f"plan `{name}` has no attempts to set (its chain restarts "
+                               "itself)")
+        return _write_outcome(name, task or plan.tasks[0], out, start,
+                              plan.solve(task or plan.tasks[0], out, verbose), verbose)
     setup = plan.build(task)
     robot, problem, options = setup.robot, setup.problem, setup.options
     if attempts is not None:
@@ -118,19 +165,32 @@ def run_plan(name: str, out_dir: Path | str, *, task: str | None = None,
               f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
     result = solve_contact(problem, options, verbose=verbose)
     trajectory = trajectory_from_result(result, robot.spec, setup.scene)
-    npz, sidecar = save_trajectory(out / "trajectory.npz", trajectory)
-    figures = plot_trajectory(trajectory, out)
-    page = replay(trajectory, html=out / "replay.html", robot=robot)
-    summary = result.summary()
+    outcome = PlanOutcome(trajectory, robot, result.status, result.success, result.summary())
+    return _write_outcome(name, task or plan.tasks[0], out, start, outcome, verbose)
+
+
+def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanOutcome,
+                   verbose: bool) -> PlanReport:
+    """Write the trajectory, figures, replay and summary.json of a solved (or failed) plan."""
+    from tfcontact.viz import plot_trajectory, replay, save_trajectory
+
+    files = list(outcome.files)
+    if outcome.trajectory is not None:
+        npz, sidecar = save_trajectory(out / "trajectory.npz", outcome.trajectory)
+        figures = plot_trajectory(outcome.trajectory, out)
+        page = replay(outcome.trajectory, html=out / "replay.html", robot=outcome.robot)
+        files += [npz, sidecar, *figures, page.html]
     (out / "summary.json").write_text(json.dumps({
-        "plan": name, "task": task or plan.tasks[0], "status": result.status,
-        "success": result.success, "wall_time": time.perf_counter() - start,
-        "summary": summary}, indent=2))
-    files = (npz, sidecar, *figures, page.html, out / "summary.json")
+        "plan": name, "task": task, "status": outcome.status,
+        "success": outcome.success, "wall_time": time.perf_counter() - start,
+        "summary": outcome.summary}, indent=2))
+    files.append(out / "summary.json")
     if verbose:
         print(f"wrote {len(files)} files to {out}/:")
         for f in files:
             print(f"  {f}")
-        print(f"replay: open {page.html} in a browser (or `tfcontact replay {npz}`)")
-    return PlanReport(name=name, success=result.success, status=result.status, out_dir=out,
-                      files=tuple(Path(f) for f in files), summary=summary)
+        if outcome.trajectory is not None:
+            print(f"replay: open {page.html} in a browser (or `tfcontact replay {npz}`)")
+        print(f"plan {name} ({task}): {outcome.status}")
+    return PlanReport(name=name, success=outcome.success, status=outcome.status, out_dir=out,
+                      files=tuple(Path(f) for f in files), summary=outcome.summary)

@@ -329,3 +329,54 @@ def save_plan(
     summary.write_text(json.dumps(plan_summary(result), indent=2, allow_nan=False) + "\n")
     files.append(summary)
     return files
+
+
+IMPACT_TAU = 1e-3
+"""Numerical duration [s] given to a touchdown of a polished plan in its `Trajectory`: the
+impact becomes a frozen piece (the clock stands still) as in a time-freezing plan."""
+
+
+def trajectory_from_polished(
+    plan: Any,
+    cls: Any,
+    robot_spec: Any,
+    scene: dict[str, Any] | None = None,
+    *,
+    solver: dict[str, Any] | None = None,
+) -> Trajectory:
+    """The `Trajectory` of a plan re-solved with the exact hybrid dynamics
+    (`tfcontact.ocp.polish.PolishedPlan`, one frictional planar contact on flat ground).
+
+    Its samples are the plan's RK4 nodes. tau is the physical time plus `IMPACT_TAU` per
+    touchdown passed, so each touchdown is a frozen piece from its pre- to its post-impact
+    node carrying the impulse; s = 1. Forces in the world frame: lambda_n along the
+    ground's normal, lambda_t along x. `solver` is stored as the sidecar's solver entry.
+    """
+    from tfcontact.ocp.polish import node_samples
+
+    robot = robot_spec if isinstance(robot_spec, dict) else robot_spec.to_dict()
+    scene = {"terrain": {"type": "flat", "height": 0.0}} if scene is None else dict(scene)
+    if len(robot.get("contacts", [])) != 1:
+        raise InvalidInput("a polished plan has one contact; the robot has "
+                           f"{len(robot.get('contacts', []))}")
+    samples = node_samples(plan, cls)
+    n_q = cls.n_q
+    clock = np.asarray(plan.t, dtype=float)
+    impacts = np.concatenate([[0], np.cumsum(np.diff(clock) == 0)])
+    tau = clock + IMPACT_TAU * impacts
+    normal = np.asarray(scene.get("terrain", {}).get("normal", GROUND_NORMAL), dtype=float)
+    tangent = np.array([1.0, 0.0, 0.0])
+
+    def world(values: np.ndarray) -> np.ndarray:
+        return (values[:, :1] * normal + values[:, 1:2] * tangent)[:, None, :]
+
+    return Trajectory(
+        tau=tau, clock=clock, s=np.ones_like(clock), q=plan.x[:, :n_q], v=plan.x[:, n_q:],
+        u=samples["u"], gap=samples["gap"][:, None],
+        normal_velocity=samples["normal_velocity"][:, None],
+        force=world(samples["force"]), impulse=world(samples["impulse"]),
+        status=plan.status, robot=_jsonable(robot), scene=_jsonable(scene),
+        solver=_jsonable(solver or {}), verification=_jsonable(plan.verification.to_dict()),
+        extras={"phase": np.array([{"stick": 0, "slip+": 1, "slip-": -1, "flight": 2}[m]
+                                   for m in samples["mode"]])},
+    )

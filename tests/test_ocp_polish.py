@@ -1,6 +1,6 @@
-"""The monoped re-solve prototype (benchmarks/monoped_polish, not part of the package): its
-hybrid dynamics and touchdown rows against closed forms and the reference's impulse flow.
-Its solves are not tested here (1.5 min; `run.py` reruns them)."""
+"""The exact re-solve along a contact sequence (tfcontact.ocp.polish): its hybrid dynamics
+and touchdown rows against closed forms and the reference's impulse flow, and the saved
+TF-9 plan against the exact replay. Its solves run in tests/test_monoped_exact.py."""
 
 from __future__ import annotations
 
@@ -10,18 +10,15 @@ import numpy as np
 import pytest
 
 from tfcontact.errors import InvalidInput
+from tfcontact.ocp import polish
+from tfcontact.scenes.monoped_exact import contact_values, verify_saved
 from tfcontact.scenes.particles import G, painleve_rod, point_mass
 from tfcontact.timefreezing.reference import _planar_impulse_flow
 
-PROTOTYPE = Path(__file__).resolve().parents[1] / "benchmarks" / "monoped_polish"
+SAVED_PLAN = Path(__file__).resolve().parents[1] / "benchmarks" / "monoped_exact_plan.npz"
 
 
-@pytest.fixture
-def polish(load_script):
-    return load_script("polish", PROTOTYPE)
-
-
-def test_stick_holds_a_pushed_particle_with_the_opposing_friction(polish):
+def test_stick_holds_a_pushed_particle_with_the_opposing_friction():
     """A unit particle on the ground pushed sideways by F < mu m g: no acceleration,
     lambda_n = m g, lambda_t = -F; in flight it falls with g and is pushed with F."""
     dyn = polish._Dynamics(point_mass(2, mu=0.5, controlled=True))
@@ -34,7 +31,7 @@ def test_stick_holds_a_pushed_particle_with_the_opposing_friction(polish):
 
 
 @pytest.mark.parametrize(("mode", "sign"), [("slip+", 1.0), ("slip-", -1.0)])
-def test_slip_decelerates_a_sliding_particle_by_mu_g(polish, mode, sign):
+def test_slip_decelerates_a_sliding_particle_by_mu_g(mode, sign):
     """A particle of mass 3 sliding on the ground at v_x = s: lambda_n = m g, a_x = -s mu g,
     no normal acceleration; the rate W_nn - s mu W_nt is 1/m (W_nt = 0)."""
     dyn = polish._Dynamics(point_mass(2, mu=0.4, mass=3.0))
@@ -46,7 +43,7 @@ def test_slip_decelerates_a_sliding_particle_by_mu_g(polish, mode, sign):
     assert rate == pytest.approx(1 / 3.0, rel=1e-12)
 
 
-def test_baumgarte_pulls_a_drifted_contact_back(polish):
+def test_baumgarte_pulls_a_drifted_contact_back():
     """Off the contact (gap h, closing at v_n), the stick rows give the normal acceleration
     -(2 alpha v_n + alpha^2 h): the drift decays instead of staying."""
     dyn = polish._Dynamics(point_mass(2, mu=0.5), alpha=20.0)
@@ -55,7 +52,7 @@ def test_baumgarte_pulls_a_drifted_contact_back(polish):
     assert a_z == pytest.approx(-(2 * 20.0 * -2e-3 + 20.0**2 * 1e-4), rel=1e-12)
 
 
-def test_stick_pins_the_rods_end_like_a_pendulum_pivot(polish):
+def test_stick_pins_the_rods_end_like_a_pendulum_pivot():
     """Painleve's rod with its lower end stuck is a pendulum about that end:
     theta'' = -(3 g / 2 L) cos(theta) whatever omega; the centre's acceleration follows
     from the pinned end."""
@@ -74,7 +71,7 @@ def test_stick_pins_the_rods_end_like_a_pendulum_pivot(polish):
         rtol=1e-12)
 
 
-def test_sticking_impact_stops_the_contact_point(polish):
+def test_sticking_impact_stops_the_contact_point():
     """A particle of mass 3 landing with v = (1, -2) m/s: the sticking impact stops it,
     impulse (6, -3) N s."""
     dyn = polish._Dynamics(point_mass(2, mu=0.8, mass=3.0))
@@ -83,7 +80,7 @@ def test_sticking_impact_stops_the_contact_point(polish):
     np.testing.assert_allclose(np.asarray(impulse).ravel(), [6.0, -3.0], rtol=1e-12)
 
 
-def test_touchdown_rows_hold_exactly_when_the_impulse_flow_ends_in_stick(polish):
+def test_touchdown_rows_hold_exactly_when_the_impulse_flow_ends_in_stick():
     """Random Delassus matrices and landing velocities: outside the Painleve region the
     rows are all >= 0 if and only if the reference's impulse flow ends with v_t = 0.
     Inside it (r_n <= 0) the flow always ends in stick, and the rows (r_n >= 1e-3) leave
@@ -111,7 +108,7 @@ def test_touchdown_rows_hold_exactly_when_the_impulse_flow_ends_in_stick(polish)
     assert painleve > 5
 
 
-def test_phase_changes_the_re_solve_does_not_model_are_named(polish):
+def test_phase_changes_the_re_solve_does_not_model_are_named():
     with pytest.raises(InvalidInput, match="no 'slip-' -> 'stick' change .* lifts off "
                                            "through slip"):
         polish.polish_contact(None, (polish.Phase("stick", 0, 0.5),
@@ -123,7 +120,7 @@ def test_phase_changes_the_re_solve_does_not_model_are_named(polish):
         polish.PolishOptions(cone_margins=(1.0, 1.2))
 
 
-def test_a_lift_off_straight_from_stick_must_be_at_a_control_jump(polish):
+def test_a_lift_off_straight_from_stick_must_be_at_a_control_jump():
     """Inside an interval it would need lambda_n = lambda_t = 0 at one switch time."""
     from types import SimpleNamespace
 
@@ -134,7 +131,7 @@ def test_a_lift_off_straight_from_stick_must_be_at_a_control_jump(polish):
                                      polish.Phase("flight", 0.55, 1)))
 
 
-def test_free_normal_acceleration_is_gravity_plus_push_for_a_particle(polish):
+def test_free_normal_acceleration_is_gravity_plus_push_for_a_particle():
     """The lift-off row at a control jump: n^T M^-1 (f + u) for a point mass of mass 2."""
     dyn = polish._Dynamics(point_mass(2, mu=0.5, mass=2.0, controlled=True))
     x = np.array([0.0, 0.0, 1.0, 0.0])
@@ -145,13 +142,11 @@ def test_free_normal_acceleration_is_gravity_plus_push_for_a_particle(polish):
 
 @pytest.fixture(scope="module")
 def saved_full_plan():
-    return np.load(PROTOTYPE.parent / "monoped_exact_plan.npz")
+    return np.load(SAVED_PLAN)
 
 
-def test_the_saved_full_plan_meets_tf9_and_passes_the_exact_replay(load_script,
-                                                                   saved_full_plan,
-                                                                   monkeypatch):
-    """benchmarks/monoped_exact_plan.npz (full.py's verified TF-9 plan): from q0 at rest to
+def test_the_saved_full_plan_meets_tf9_and_passes_the_exact_replay(saved_full_plan):
+    """benchmarks/monoped_exact_plan.npz (the chain's verified TF-9 plan): from q0 at rest to
     the goal within |u| <= 60, TF-9's ellipses kept at its nodes, and each control
     interval's exact replay from the plan's own state within the tolerance in sum."""
     plan = saved_full_plan
@@ -159,9 +154,7 @@ def test_the_saved_full_plan_meets_tf9_and_passes_the_exact_replay(load_script,
     np.testing.assert_allclose(boundary[0], [0, 0.4, 0, 0, 0, 0, 0, 0], atol=1e-9)
     np.testing.assert_allclose(boundary[-1][:4], [3.0, 0.4, 0.0, 0.0], atol=1e-6)
     assert u.shape == (20, 2) and np.abs(u).max() <= 60 + 1e-9
-    monkeypatch.syspath_prepend(str(PROTOTYPE))  # verify.py imports polish
-    verify = load_script("verify", PROTOTYPE)
-    verification, holes = verify.verify_saved(PROTOTYPE.parent / "monoped_exact_plan.npz")
+    verification, holes = verify_saved(SAVED_PLAN)
     assert verification.passed and verification.open_loop_unstable
     assert verification.defect_sum < 5e-2
     assert holes >= -1e-6 and verification.min_gap >= -1e-3
@@ -169,23 +162,20 @@ def test_the_saved_full_plan_meets_tf9_and_passes_the_exact_replay(load_script,
     # landings, stick forces pressing and inside the cone (mu = 0.8) up to round-off.
     from tfcontact.scenes.monoped import monoped_problem
     # the reduced task's robot, ground and friction are the full task's
-    dyn = load_script("polish", PROTOTYPE)._Dynamics(monoped_problem("reduced").system.cls)
-    forces, impulses = verify.contact_values(plan, dyn, 2.5)
+    dyn = polish._Dynamics(monoped_problem("reduced").system.cls)
+    forces, impulses = contact_values(plan, dyn, 2.5)
     assert len(impulses) == 3 and len(forces) > 300
     both = np.vstack([forces, impulses])
     assert both[:, 0].min() > 0
     assert np.all(np.abs(both[:, 1]) <= 0.8 * both[:, 0] + 1e-6)
 
 
-def test_the_saved_full_plan_fails_with_one_control_moved(load_script, saved_full_plan,
-                                                          tmp_path, monkeypatch):
+def test_the_saved_full_plan_fails_with_one_control_moved(saved_full_plan, tmp_path):
     """The replay check can fail: 0.5 N m more hip torque in one stance interval."""
     moved = dict(saved_full_plan)
     moved["u"] = moved["u"].copy()
     moved["u"][4, 0] += 0.5
     np.savez(tmp_path / "moved.npz", **moved)
-    monkeypatch.syspath_prepend(str(PROTOTYPE))  # verify.py imports polish
-    verify = load_script("verify", PROTOTYPE)
-    verification, _ = verify.verify_saved(tmp_path / "moved.npz")
+    verification, _ = verify_saved(tmp_path / "moved.npz")
     assert not verification.passed
     assert verification.local_defects[4] > 5e-2

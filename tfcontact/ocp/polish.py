@@ -1,15 +1,8 @@
-"""PROTOTYPE, not part of the tfcontact package: the code of the monoped experiments in
-benchmarks/monoped_settings.md (2026-11-25, the slip-phase rows), kept so that they can
-be rerun and the idea taken further. Run `run.py` beside it. Its dynamics and touchdown
-rows are tested against closed forms and the reference's impulse flow
-(tests/test_monoped_polish_prototype.py); its solves are not, and they are fragile:
-writing the grid as linspace or the touchdown rows as "expression >= 0" (equal up to
-round-off) moved the first solve from 472 iterations to the 3000 cap.
+"""The exact re-solve ("polish") of a contact plan along a fixed contact sequence.
 
-Mode-fixed re-solve ("polish"): the exact hybrid dynamics along the contact sequence a
-time-freezing plan found. The homotopy of `solve_contact` discovers when the contact
-closes, slips and opens; its relaxed plan may hover above the ground while it pushes, sink
-into it, or cross a fast flight with a coarse element. `polish_contact` keeps a sequence
+The homotopy of `solve_contact` discovers when a contact closes, slips and opens; its
+relaxed plan may hover above the ground while it pushes, sink into it, or cross a fast
+flight with a coarse element. `polish_contact` keeps a sequence
 of phases and re-solves the OCP as a smooth NLP with the original system's dynamics:
 
 * stick: M a = f + n lambda_n + B lambda_t with n^T a + (dn/dt)^T v = -(2 alpha v_n +
@@ -33,6 +26,12 @@ interval, `steps_per_node` RK4 steps between two, nodes at most 1.5 T / (N subst
 apart), multiple shooting. Optional Painleve margin
 W_nn -+ mu W_nt >= delta at contact nodes. The result is checked like a time-freezing plan
 (replay, local defects, kicked sensitivity).
+
+Tested: the dynamics and touchdown rows against closed forms and the reference's impulse
+flow (tests/test_ocp_polish.py); the solves in tests/test_monoped_exact.py. The solves
+are fragile (benchmarks/monoped_settings.md): writing the grid as linspace or the
+touchdown rows as "expression >= 0" (equal up to round-off) moved one of them from 472
+iterations to the 3000 cap. It handles one frictional planar contact (the monoped's foot).
 """
 
 from __future__ import annotations
@@ -641,3 +640,42 @@ def _verify(cls, problem: ContactProblem, clocks: np.ndarray, boundary_x: np.nda
         notes=tuple(notes), dissipation_violation=float("nan"), local_defects=defects,
         defect_sum=defect_sum, open_loop_amplification=amplification,
         open_loop_unstable=bool(end_ok and deviation > options.end_state_tolerance))
+
+
+def node_samples(plan: PolishedPlan, cls, baumgarte: float = PolishOptions.baumgarte
+                 ) -> dict[str, np.ndarray]:
+    """Per node of a polished plan: its phase mode, the control that drives it, the gap and
+    normal velocity, the contact force (lambda_n, lambda_t) [N] (stick: the stick force,
+    slip: lambda_t = -s mu lambda_n, flight: 0) and the impulse (Lambda_n, Lambda_t) [N s]
+    of a touchdown at its post-impact node (0 elsewhere). A node's mode and control are
+    those of the RK4 segment that ends at it (the first node: the first phase's and
+    control's); a post-impact node is in the stick phase that starts there."""
+    dyn = _Dynamics(cls, baumgarte)
+    t, x, u = plan.t, plan.x, plan.u
+    n_int = len(u)
+    horizon = plan.phases[-1].end
+    dt = horizon / n_int
+    starts = np.array([p.start for p in plan.phases])
+    modes, controls = [], []
+    forces = np.zeros((len(t), 2))
+    impulses = np.zeros((len(t), 2))
+    for i in range(len(t)):
+        if i > 0 and t[i] == t[i - 1]:  # the post-impact node of a touchdown
+            at = t[i]
+            impulses[i] = np.asarray(dyn.impact(x[i - 1])[1]).ravel()
+        else:
+            at = t[0] if i == 0 else 0.5 * (t[i - 1] + t[i])
+        phase = plan.phases[max(int(np.searchsorted(starts, at, side="right")) - 1, 0)]
+        k = min(int(at / dt), n_int - 1)
+        modes.append(phase.mode)
+        controls.append(u[k])
+        if phase.mode == STICK:
+            forces[i] = np.asarray(dyn.force(x[i], u[k])).ravel()
+        elif phase.mode != FLIGHT:
+            sign = 1.0 if phase.mode == "slip+" else -1.0
+            lam_n = float(dyn.slip_force[phase.mode](x[i], u[k])[0])
+            forces[i] = (lam_n, -sign * dyn.mu * lam_n)
+    velocities = np.asarray(dyn.velocity(x.T)).T.reshape(len(t), 2)
+    return {"mode": np.array(modes), "u": np.array(controls).reshape(len(t), -1),
+            "gap": np.asarray(dyn.gap(x.T)).ravel(), "normal_velocity": velocities[:, 0],
+            "force": forces, "impulse": impulses}

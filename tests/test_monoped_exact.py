@@ -1,0 +1,160 @@
+"""TF-9's two-stage chain (tfcontact.scenes.monoped_exact): the continuation past an
+iteration cap, the tiled guess, the files `tfcontact plan monoped` writes, and the reduced
+task end to end (slow: about 6 minutes)."""
+
+from __future__ import annotations
+
+import json
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import tfcontact.scenes.monoped_exact as chain_module
+from tfcontact.cli import main
+from tfcontact.ocp.polish import FLIGHT, STICK, Phase, PolishedPlan
+from tfcontact.scenes.monoped import REDUCED_TASK, monoped_problem
+from tfcontact.scenes.monoped_exact import (
+    EXACT_TASK,
+    LIFT_OFFS,
+    ExactPlan,
+    tiled_guess,
+    verify_saved,
+)
+from tfcontact.viz import load_trajectory
+
+SAVED_PLAN = Path(__file__).resolve().parents[1] / "benchmarks" / "monoped_exact_plan.npz"
+
+
+def _plan(status: str, cost: float, shift: float = 0.0, verification=None) -> PolishedPlan:
+    t = np.linspace(0.0, 1.0, 5)
+    return PolishedPlan(
+        phases=(Phase(STICK, 0.0, 1.0),), t=t, x=np.zeros((5, 8)) + shift, u=np.zeros((10, 2)),
+        boundary_states=np.zeros((11, 8)), contact_forces=np.zeros((0, 2)),
+        impact_impulses=np.zeros((0, 2)), cost=cost, ipopt_status=status, iterations=7,
+        solve_time=1.0, verification=verification or types.SimpleNamespace(passed=True,
+                                                                           summary=str))
+
+
+def test_a_capped_step_hands_its_iterate_on_and_the_last_is_solved_again(monkeypatch):
+    """Step 1 stops at the iteration cap: step 2 starts from its iterate. Step 2 stops at
+    the cap too: it is solved once more from its own iterate, and that decides."""
+    outcomes = iter([("Maximum_Iterations_Exceeded", 1.0), ("Maximum_Iterations_Exceeded", 2.0),
+                     ("Solve_Succeeded", 3.0)])
+    guesses = []
+
+    def fake_polish(source, phases, options, *, verbose, guess):
+        guesses.append(None if guess is None else float(guess[1][0, 0]))
+        status, cost = next(outcomes)
+        return _plan(status, cost, shift=cost)
+
+    monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
+    mp = monoped_problem(REDUCED_TASK)
+    levels = [("first", None), ("second", None)]
+    result = chain_module._chain(levels, mp, lambda _: mp, None, (Phase(STICK, 0, 1),), None,
+                                 [], 0.0, verbose=False)
+    assert guesses == [None, 1.0, 2.0]  # each solve starts from the last iterate
+    assert [s.name for s in result.steps] == ["first", "second",
+                                              "second, again from its capped iterate"]
+    assert result.plan.cost == 3.0 and result.status == "converged" and not result.message
+
+
+def test_any_other_failure_stops_the_chain(monkeypatch):
+    calls = []
+
+    def fake_polish(source, phases, options, *, verbose, guess):
+        calls.append(1)
+        return _plan("Infeasible_Problem_Detected", 1.0)
+
+    monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
+    mp = monoped_problem(REDUCED_TASK)
+    result = chain_module._chain([("first", None), ("second", None)], mp, lambda _: mp, None,
+                                 (Phase(STICK, 0, 1),), None, [], 0.0, verbose=False)
+    assert len(calls) == 1 and result.status == "nlp_failed" and not result.success
+    assert "first: IPOPT Infeasible_Problem_Detected" in result.summary()
+
+
+def test_tiled_guess_repeats_the_hop_on_the_schedule():
+    """The hop three times: lift-offs at the control jumps 0.5, 1.25, 2.0 s, one metre
+    further per hop, time scaled (velocities / scale, torques / scale^2)."""
+    t = np.linspace(0.0, 1.0, 101)
+    x = np.zeros((101, 8))
+    x[:, 0] = t  # q_x from 0 to 1
+    x[:, 4] = 1.0  # v_x
+    hop = PolishedPlan(
+        phases=(Phase(STICK, 0, 0.55), Phase("slip-", 0.55, 0.6), Phase(FLIGHT, 0.6, 0.89),
+                Phase(STICK, 0.89, 1.0)),
+        t=t, x=x, u=np.full((10, 2), 4.0), boundary_states=x[::10], contact_forces=np.zeros((0, 2)),
+        impact_impulses=np.zeros((0, 2)), cost=0.0, ipopt_status="Solve_Succeeded",
+        iterations=0, solve_time=0.0, verification=None)
+    (t_guess, x_guess, u_guess), phases = tiled_guess(hop, EXACT_TASK)
+    assert [p.mode for p in phases] == [STICK, FLIGHT] * 3 + [STICK]
+    assert [p.start for p in phases if p.mode == FLIGHT] == list(LIFT_OFFS)
+    dt = EXACT_TASK.horizon / EXACT_TASK.n_intervals
+    assert all(abs(s / dt - round(s / dt)) < 1e-12 for s in LIFT_OFFS)  # control jumps
+    assert np.all(np.diff(t_guess) >= 0) and t_guess[-1] == pytest.approx(2.5)
+    assert x_guess[0, 0] == 0.0 and x_guess[-1, 0] == pytest.approx(3.0)
+    # the first stance: 0.6 s of the hop onto 0.5 s, so v_x = 1 / (5/6)
+    assert x_guess[1, 4] == pytest.approx(1.2)
+    assert u_guess.shape == (20, 2) and u_guess[0, 0] == pytest.approx(4.0 * 1.2**2)
+
+
+def test_plan_monoped_writes_plan_trajectory_and_replay(monkeypatch, tmp_path, capsys):
+    """`tfcontact plan monoped` writes the chain's plan (verified again from the file),
+    its trajectory with the three touchdowns as frozen pieces carrying the impulses,
+    the figures and the replay; the chain itself is replaced by the saved plan."""
+    saved = np.load(SAVED_PLAN)
+    starts = [*saved["phase_starts"], 2.5]
+    phases = tuple(Phase(str(m), float(a), float(b))
+                   for m, a, b in zip(saved["phase_modes"], starts[:-1], starts[1:], strict=True))
+    verification, holes = verify_saved(SAVED_PLAN)
+    plan = PolishedPlan(
+        phases=phases, t=saved["t"], x=saved["x"], u=saved["u"],
+        boundary_states=saved["boundary"], contact_forces=np.zeros((0, 2)),
+        impact_impulses=np.zeros((0, 2)), cost=236.9, ipopt_status="Solve_Succeeded",
+        iterations=1, solve_time=1.0, verification=verification)
+    mp = monoped_problem(EXACT_TASK)
+    fake = ExactPlan(plan, mp, (), holes, 1.0)
+    monkeypatch.setattr(chain_module, "full_exact_plan", lambda verbose: fake)
+    assert main(["plan", "monoped", "--out", str(tmp_path)]) == 0
+    assert "plan monoped (full): converged" in capsys.readouterr().out
+    for name in ("plan.npz", "path.png", "trajectory.npz", "trajectory.json", "replay.html",
+                 "contacts.png", "summary.json"):
+        assert (tmp_path / name).is_file(), name
+    again, _ = verify_saved(tmp_path / "plan.npz")
+    assert again.passed and again.defect_sum == pytest.approx(verification.defect_sum)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["success"] and summary["status"] == "converged"
+    traj = load_trajectory(tmp_path / "trajectory.npz")
+    assert traj.status == "converged" and traj.verification["passed"]
+    landing = np.flatnonzero(np.abs(traj.impulse).sum(axis=(1, 2)) > 0)
+    assert landing.size == 3
+    assert np.all(traj.clock[landing] == traj.clock[landing - 1])  # frozen: an impact
+    assert np.all(traj.tau[landing] > traj.tau[landing - 1])
+    assert np.all(traj.impulse[landing, 0, 2] > 0)  # pushing up
+    assert traj.solver["method"].startswith("exact re-solve")
+    # every RK4 node is a sample
+    assert traj.q.shape[0] == saved["t"].size
+
+
+@pytest.mark.slow
+def test_reduced_monoped_plan_hops_over_the_hole(tmp_path):
+    """`tfcontact plan monoped --task reduced`: the time-freezing homotopy from the
+    start-everywhere guess finds the hop, the exact re-solve makes it a verified plan
+    (measured: 778 homotopy iterations, then 458, 122 and 810; objective 176.43, local
+    defects summing to 4.2e-3)."""
+    assert main(["plan", "monoped", "--task", "reduced", "--out", str(tmp_path),
+                 "--quiet"]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["success"]
+    traj = load_trajectory(tmp_path / "trajectory.npz")
+    v = traj.verification
+    assert v["passed"] and v["defect_sum"] < v["tolerances"]["end_state"]
+    assert v["min_gap"] >= -1e-3 and v["friction_cone_violation"] <= 1e-6
+    assert traj.gap.max() > 1e-2  # it leaves the ground
+    np.testing.assert_allclose(traj.q[-1], REDUCED_TASK.q_goal, atol=1e-6)
+    assert np.abs(traj.u).max() <= REDUCED_TASK.control_bound + 1e-9
+    foot = np.asarray(monoped_problem(REDUCED_TASK).foot(traj.q.T)).T
+    x_c, a, b = 0.5, REDUCED_TASK.hole_half_width, REDUCED_TASK.hole_depth
+    assert np.all(foot[:, 1] >= b * (1 - ((foot[:, 0] - x_c) / a) ** 2) - 1e-6)  # the bump

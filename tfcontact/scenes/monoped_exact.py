@@ -1,0 +1,383 @@
+"""TF-9's monoped planned in two stages: the time-freezing homotopy finds a hop, the exact
+re-solve (`tfcontact.ocp.polish`) turns it into a verified plan.
+
+The time-freezing homotopy of the full task from the start-everywhere guess ends
+nlp_failed (benchmarks/monoped_settings.md); the reduced task's (one hole, T = 1 s)
+converges and finds one hop: stick, flight, stick. The chain:
+
+1. `reduced_exact_plan`: the reduced task's relaxed plan, then the exact re-solve along
+   its sequence with a slip before the lift-off (its start guessed at 0.55 s): 8 RK4
+   nodes per interval, then 16, then 16 nodes x 2 RK4 steps, each warm started from the
+   last. A verified plan of the reduced task.
+2. `tiled_guess`: that hop three times on the schedule `LIFT_OFFS` / `FLIGHT` (set by
+   hand from the reduced hop, time scaled by 5/6): lift-offs straight from stick at the
+   control jumps 0.5, 1.25 and 2.0 s, flights of 0.26 s, one metre further per hop.
+3. `full_exact_plan`: the exact re-solve of `EXACT_TASK` (T = 2.5 s, N = 20, three holes
+   of half width 0.25 as in the authors' robot_ocp.m) along that schedule with free
+   touchdowns: with bump holes (8 nodes x 2 RK4 steps, then 16 x 2), then with TF-9's
+   ellipses (16 x 2).
+
+The re-solves are fragile: one rerun of the chain found another local solution and
+stopped at IPOPT's iteration cap in its second step, and the ellipse re-solve from that
+capped iterate converged and passed. So a step that stops at the cap hands its iterate
+to the next step (`ChainStep.status` says so), and the last step is solved once more
+from its own iterate if it stops at the cap; any other failure ends the chain with a
+failed status. Only the last step's verification decides.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import types
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tfcontact.errors import InvalidInput
+from tfcontact.ocp.polish import (
+    FLIGHT,
+    STICK,
+    Phase,
+    PolishedPlan,
+    PolishOptions,
+    _Dynamics,
+    _verify,
+    contact_phases,
+    polish_contact,
+)
+from tfcontact.ocp.verify import Verification
+from tfcontact.scenes.monoped import (
+    FULL_TASK,
+    MonopedProblem,
+    hole_profile,
+    monoped_options,
+    monoped_problem,
+)
+
+EXACT_TASK = dataclasses.replace(FULL_TASK, hole_half_width=0.25, hole_form="ellipse")
+"""The task of `full_exact_plan`: TF-9 (T = 2.5 s, N = 20, |u| <= 60, q(T) = (3, 0.4, 0, 0))
+with TF-9's ellipses of half width 0.25 (the authors' robot_ocp.m; PROBLEMS.md lists 0.5,
+under which the holes at 0.5, 1.5 and 2.5 leave 0.5 m of ground between them)."""
+
+LIFT_OFFS = (0.5, 1.25, 2.0)
+"""Lift-offs [s] of the full task's guess: control jumps (T / N = 0.125 s)."""
+FLIGHT_TIME = 0.26
+"""Flight time [s] of each hop of the full task's guess."""
+HOP_LIFT_OFF, HOP_TOUCHDOWN = 0.6, 0.89
+"""The reduced hop's lift-off and touchdown [s] as the tiling uses them (the measured hops:
+0.600 and 0.881 s; the verified full plans were made with these numbers)."""
+SLIP_START = 0.55
+"""Guessed start [s] of the reduced hop's slip before its lift-off."""
+CAPPED = "Maximum_Iterations_Exceeded"
+
+
+@dataclass(frozen=True)
+class ChainStep:
+    """One re-solve of the chain: its name, IPOPT status, iterations, seconds, objective
+    and the plan's status."""
+
+    name: str
+    ipopt_status: str
+    iterations: int
+    seconds: float
+    objective: float
+    status: str
+
+
+@dataclass(frozen=True, eq=False)
+class ExactPlan:
+    """The result of a chain: the last re-solve's plan, the problem it solves and the steps.
+
+    Attributes:
+        plan: the last step's `PolishedPlan` (its verification decides).
+        problem: the `MonopedProblem` of the last step (`EXACT_TASK` or the reduced task).
+        steps: every re-solve, in order (the relaxed homotopy first, as a step).
+        smallest_hole_value: the smallest ellipse value ((p_x - x_c)/a)^2 + (p_z/b)^2 - 1
+            at the plan's nodes (>= 0 outside the holes).
+        wall_time: seconds for the whole chain.
+        message: why the chain stopped, when it failed.
+    """
+
+    plan: PolishedPlan | None
+    problem: MonopedProblem
+    steps: tuple[ChainStep, ...]
+    smallest_hole_value: float
+    wall_time: float
+    message: str = ""
+
+    @property
+    def status(self) -> str:
+        return "chain_failed" if self.plan is None else self.plan.status
+
+    @property
+    def success(self) -> bool:
+        return self.plan is not None and self.plan.success and self.smallest_hole_value >= -1e-6
+
+    def summary(self) -> str:
+        lines = [f"monoped exact chain: {self.status} in {self.wall_time:.0f} s"
+                 + (f" ({self.message})" if self.message else "")]
+        for step in self.steps:
+            lines.append(f"  {step.name}: {step.status} (IPOPT {step.ipopt_status}, "
+                         f"{step.iterations} iterations, {step.seconds:.0f} s, objective "
+                         f"{step.objective:.6g})")
+        if self.plan is not None:
+            lines.append(self.plan.summary())
+            lines.append(f"smallest hole value {self.smallest_hole_value:.3g} (>= 0 outside "
+                         "the holes)")
+        return "\n".join(lines)
+
+
+def _step(name: str, plan: PolishedPlan, seconds: float) -> ChainStep:
+    return ChainStep(name, plan.ipopt_status, plan.iterations, seconds, plan.cost, plan.status)
+
+
+def _hole_value(problem: MonopedProblem, plan: PolishedPlan) -> float:
+    return float(np.min(problem.hole_values(plan.x[:, :4])))
+
+
+def reduced_exact_plan(verbose: bool = True) -> ExactPlan:
+    """The reduced task (one bump hole, T = 1 s, N = 10): its relaxed plan from the
+    start-everywhere guess (the homotopy finds stick, flight, stick), then the exact
+    re-solve with a slip before the lift-off (8 nodes, 16 nodes, 16 nodes x 2 RK4 steps).
+    About 6 minutes; the measured runs: 778 iterations for the homotopy, then 458, 122
+    and 810 (objective 176.43)."""
+    from tfcontact.ocp.contact import solve_contact
+
+    start = time.perf_counter()
+    mp = monoped_problem("reduced")
+    options = monoped_options("reduced")
+    options = dataclasses.replace(
+        options, homotopy=dataclasses.replace(options.homotopy, max_refinements=3),
+        nlp=dataclasses.replace(options.nlp, options={"mu_strategy": "adaptive"},
+                                element_derivatives=True, threads=1, intermediate_tol=0.1))
+    if verbose:
+        print("monoped (reduced): the time-freezing homotopy from the start-everywhere guess",
+              flush=True)
+    relaxed = solve_contact(mp.problem, options, verbose=verbose)
+    steps = [ChainStep("time-freezing homotopy (reduced task)", relaxed.status,
+                       relaxed.ocp.total_iterations, time.perf_counter() - start,
+                       float(relaxed.ocp.cost), relaxed.status)]
+    found = contact_phases(relaxed)
+    if [p.mode for p in found] != [STICK, FLIGHT, STICK] or found[1].start <= SLIP_START:
+        return ExactPlan(None, mp, tuple(steps), float("nan"), time.perf_counter() - start,
+                         message="the relaxed plan's contact sequence is "
+                                 f"{[(p.mode, round(p.start, 3)) for p in found]}, not one "
+                                 f"hop lifting off after {SLIP_START} s")
+    lift_off = found[1].start
+    phases = (Phase(STICK, 0.0, SLIP_START), Phase("slip-", SLIP_START, lift_off),
+              Phase(FLIGHT, lift_off, found[1].end), Phase(STICK, found[2].start, 1.0))
+    levels = [("exact re-solve, 8 nodes", PolishOptions(substeps=8, painleve_margin=0.0)),
+              ("exact re-solve, 16 nodes", PolishOptions(substeps=16, painleve_margin=0.0)),
+              ("exact re-solve, 16 nodes x 2 RK4 steps",
+               PolishOptions(substeps=16, steps_per_node=2, painleve_margin=0.0))]
+    source = relaxed
+    guess = None
+    return _chain(levels, mp, lambda _: mp, source, phases, guess, steps, start, verbose)
+
+
+def _chain(levels, final_problem: MonopedProblem, problem_of, source, phases, guess,
+           steps: list[ChainStep], start: float, verbose: bool) -> ExactPlan:
+    """Run the re-solves `levels` [(name, PolishOptions)] in order, each from the last; a
+    step at the iteration cap hands its iterate on, the last one is solved once more from
+    its own iterate; other failures stop the chain (module docstring)."""
+    plan = None
+    for i, (name, options) in enumerate(levels):
+        last = i == len(levels) - 1
+        for attempt in range(2 if last else 1):
+            label = name if attempt == 0 else f"{name}, again from its capped iterate"
+            if verbose:
+                print(f"monoped: {label}", flush=True)
+            begin = time.perf_counter()
+            problem = problem_of(i)
+            plan = polish_contact(types.SimpleNamespace(problem=problem.problem)
+                                  if source is None else source, phases, options,
+                                  verbose=verbose, guess=guess)
+            steps.append(_step(label, plan, time.perf_counter() - begin))
+            guess, phases = (plan.t, plan.x, plan.u), plan.phases
+            if plan.ipopt_status != CAPPED:
+                break
+        if not plan.solved and plan.ipopt_status != CAPPED:
+            return ExactPlan(plan, final_problem, tuple(steps), _hole_value(problem, plan),
+                             time.perf_counter() - start,
+                             message=f"{name}: IPOPT {plan.ipopt_status}")
+        if not plan.solved and verbose and not last:
+            print(f"monoped: {name} stopped at the iteration cap; its iterate starts the next "
+                  "step", flush=True)
+    return ExactPlan(plan, final_problem, tuple(steps), _hole_value(final_problem, plan),
+                     time.perf_counter() - start,
+                     message="" if plan.solved else f"{levels[-1][0]}: IPOPT {plan.ipopt_status}")
+
+
+def tiled_guess(hop: PolishedPlan, task=EXACT_TASK):
+    """The reduced hop three times on the schedule `LIFT_OFFS` / `FLIGHT_TIME`: ((t, x, u),
+    phases) as a guess of the full task. Each segment of the hop (stance before the
+    lift-off, flight, last stance) is time scaled onto its slot, velocities divided and
+    torques by the square of the scale, q_x moved one metre per hop."""
+    lift_off, touchdown = HOP_LIFT_OFF, HOP_TOUCHDOWN
+    hop_end = hop.phases[-1].end
+    segments = []  # (start, end, start in the hop, end in the hop, hop index)
+    previous = 0.0
+    for j, jump in enumerate(LIFT_OFFS):
+        segments.append((previous, jump, 0.0, lift_off, j))
+        segments.append((jump, jump + FLIGHT_TIME, lift_off, touchdown, j))
+        previous = jump + FLIGHT_TIME
+    segments.append((previous, task.horizon, touchdown, hop_end, len(LIFT_OFFS) - 1))
+    t_guess, x_guess = [], []
+    for a, b, ra, rb, j in segments:
+        scale = (b - a) / (rb - ra)
+        for s in np.linspace(0.0, 1.0, 25):
+            x = np.array([np.interp(ra + s * (rb - ra), hop.t, hop.x[:, i])
+                          for i in range(hop.x.shape[1])])
+            x[0] += j
+            x[x.size // 2:] /= scale
+            t_guess.append(a + s * (b - a))
+            x_guess.append(x)
+    dt = task.horizon / task.n_intervals
+    u_guess = []
+    for k in range(task.n_intervals):
+        middle = (k + 0.5) * dt
+        a, b, ra, rb, _ = next(s for s in segments if s[0] <= middle <= s[1])
+        scale = (b - a) / (rb - ra)
+        hop_time = ra + (middle - a) / scale
+        index = min(int(hop_time / hop_end * len(hop.u)), len(hop.u) - 1)
+        u_guess.append(hop.u[index] / scale**2)
+    phases = [Phase(STICK, 0.0, LIFT_OFFS[0])]
+    for jump in LIFT_OFFS:
+        phases += [Phase(FLIGHT, jump, jump + FLIGHT_TIME),
+                   Phase(STICK, jump + FLIGHT_TIME, task.horizon)]
+    u_guess = np.clip(np.array(u_guess), -task.control_bound, task.control_bound)
+    return (np.array(t_guess), np.array(x_guess), u_guess), tuple(phases)
+
+
+def full_exact_plan(verbose: bool = True) -> ExactPlan:
+    """TF-9's task (`EXACT_TASK`) by the chain of the module docstring. About 35 to 55
+    minutes on a 2-core machine (the measured runs: 2450 and 1389 iterations in the
+    ellipse step)."""
+    start = time.perf_counter()
+    reduced = reduced_exact_plan(verbose)
+    steps = list(reduced.steps)
+    if not reduced.success:
+        return ExactPlan(reduced.plan, reduced.problem, tuple(steps),
+                         reduced.smallest_hole_value, time.perf_counter() - start,
+                         message=f"the reduced hop is not verified ({reduced.status}"
+                                 f"{': ' + reduced.message if reduced.message else ''})")
+    bumps = monoped_problem(dataclasses.replace(EXACT_TASK, hole_form="bump"))
+    ellipses = monoped_problem(EXACT_TASK)
+    guess, phases = tiled_guess(reduced.plan, EXACT_TASK)
+    options = {n: PolishOptions(substeps=n, steps_per_node=2, painleve_margin=0.0)
+               for n in (8, 16)}
+    levels = [("full task, bump holes, 8 nodes x 2 RK4 steps", options[8]),
+              ("full task, bump holes, 16 nodes x 2 RK4 steps", options[16]),
+              ("full task, TF-9's ellipses, 16 nodes x 2 RK4 steps", options[16])]
+    return _chain(levels, ellipses, lambda i: ellipses if i == 2 else bumps, None, phases,
+                  guess, steps, start, verbose)
+
+
+# ---- saved plans -------------------------------------------------------------------------
+
+def save_exact_plan(plan: PolishedPlan, path: str | Path) -> Path:
+    """Write a polished plan's arrays (node times, states, controls, boundary states, phases,
+    local defects) to an .npz that `verify_saved` checks again."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, t=plan.t, x=plan.x, u=plan.u, boundary=plan.boundary_states,
+             phase_modes=np.array([p.mode for p in plan.phases]),
+             phase_starts=np.array([p.start for p in plan.phases]),
+             local_defects=np.asarray(plan.verification.local_defects))
+    return path
+
+
+def contact_values(plan: Any, dyn: _Dynamics, horizon: float) -> tuple[np.ndarray, np.ndarray]:
+    """(stick forces (n, 2) [N], touchdown impulses (m, 2) [N s]) of a saved plan: the
+    stick force at both ends of every RK4 segment inside a stick phase, with that
+    segment's control (so at a control jump with both controls, as the re-solve's rows
+    hold them), and the impulse of each touchdown (two nodes at one time)."""
+    t, x, u = plan["t"], plan["x"], plan["u"]
+    starts, modes = plan["phase_starts"], plan["phase_modes"]
+    dt = horizon / len(u)
+    forces, impulses = [], []
+    for i in range(len(t) - 1):
+        if t[i + 1] == t[i]:
+            impulses.append(np.asarray(dyn.impact(x[i])[1]).ravel())
+            continue
+        middle = 0.5 * (t[i] + t[i + 1])
+        if modes[np.searchsorted(starts, middle) - 1] != STICK:
+            continue
+        u_k = u[min(int(middle / dt), len(u) - 1)]
+        forces += [np.asarray(dyn.force(x[j], u_k)).ravel() for j in (i, i + 1)]
+    return np.array(forces).reshape(-1, 2), np.array(impulses).reshape(-1, 2)
+
+
+def verify_saved(path: str | Path, task=EXACT_TASK) -> tuple[Verification, float]:
+    """(Verification, smallest hole value) of a plan saved by `save_exact_plan`: the exact
+    reference replays it interval by interval (the checks of `verify_plan`), the friction
+    cone is checked on the forces and impulses recomputed from its states and controls,
+    and the holes are measured at its nodes."""
+    plan = np.load(path)
+    mp = monoped_problem(task)
+    if plan["u"].shape != (task.n_intervals, 2):
+        raise InvalidInput(f"{path}: controls of shape {plan['u'].shape}, the task has "
+                           f"{task.n_intervals} intervals of 2 torques")
+    dyn = _Dynamics(mp.system.cls)
+    n = task.n_intervals
+    clocks = np.array([k * task.horizon / n for k in range(n + 1)])
+    forces, impulses = contact_values(plan, dyn, task.horizon)
+    verification = _verify(mp.system.cls, mp.problem, clocks, plan["boundary"], plan["u"],
+                           plan["x"], dyn, forces, impulses, PolishOptions())
+    return verification, float(np.min(mp.hole_values(plan["x"][:, :4])))
+
+
+def plot_exact_plan(plan: PolishedPlan, problem: MonopedProblem, path: str | Path) -> Path:
+    """The figure of a monoped plan: the foot's, knee's and hip's paths over the holes, the
+    joint angles and the torques (dotted: lift-offs)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    task = problem.task
+    t, x, u = plan.t, plan.x, plan.u
+    foot = np.asarray(problem.foot(x[:, :4].T)).T
+    knee = np.asarray(problem.knee(x[:, :4].T)).T
+    fig, (where, angles, torques) = plt.subplots(3, 1, figsize=(8, 8.5))
+    for centre in task.holes:
+        outline = hole_profile(task, centre, 64)
+        where.fill(outline[:, 0], np.maximum(outline[:, 1], 0.0), color="tab:red", alpha=0.3,
+                   lw=0)
+    where.plot(foot[:, 0], foot[:, 1], label="foot")
+    where.plot(x[:, 0], x[:, 1], label="hip")
+    where.plot(knee[:, 0], knee[:, 1], lw=0.8, label="knee")
+    where.axhline(0, color="k", lw=0.8)
+    where.set(xlabel="x [m]", ylabel="z [m]", aspect="equal",
+              title=f"TF-9 monoped, exact re-solve ({task.hole_form} holes of half width "
+                    f"{task.hole_half_width:g} m): {plan.status}")
+    where.legend(loc="upper right", fontsize=8)
+    angles.plot(t, x[:, 2], label="hip angle")
+    angles.plot(t, x[:, 3], label="knee angle")
+    angles.set(xlabel="t [s]", ylabel="[rad]")
+    angles.legend(fontsize=8)
+    grid = np.linspace(0, task.horizon, len(u) + 1)
+    for i, name in enumerate(("hip", "knee")):
+        torques.stairs(u[:, i], grid, label=f"{name} torque")
+    for phase in plan.phases:
+        if phase.mode == FLIGHT:
+            torques.axvline(phase.start, color="gray", lw=0.6, ls=":")
+    torques.set(xlabel="t [s] (dotted: lift-offs)", ylabel="[N m]")
+    torques.legend(fontsize=8)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+if __name__ == "__main__":  # python -m tfcontact.scenes.monoped_exact PLAN.npz
+    import sys
+
+    checked, hole_value = verify_saved(sys.argv[1])
+    print(checked.summary())
+    print(f"smallest ellipse value {hole_value:.3g} (>= 0 outside TF-9's holes)")
+    sys.exit(0 if checked.passed and hole_value >= -1e-6 else 1)
