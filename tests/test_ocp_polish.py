@@ -179,3 +179,24 @@ def test_the_saved_full_plan_fails_with_one_control_moved(saved_full_plan, tmp_p
     verification, _ = verify_saved(tmp_path / "moved.npz")
     assert not verification.passed
     assert verification.local_defects[4] > 5e-2
+
+
+def test_a_capped_re_solve_reports_progress_and_fails_honestly(monkeypatch, capsys):
+    """A long re-solve prints a line every `PROGRESS_EVERY` iterations; stopped at the
+    iteration cap, its plan is nlp_failed (not a plan marked successful)."""
+    from types import SimpleNamespace
+
+    from tfcontact.scenes.monoped import monoped_problem
+
+    monkeypatch.setattr(polish, "PROGRESS_EVERY", 5)
+    problem = monoped_problem("reduced").problem  # to x = 1: no plan by standing still
+    x0 = np.array([0, 0.4, 0, 0, 0, 0, 0, 0.0])
+    plan = polish.polish_contact(SimpleNamespace(problem=problem),
+                                 (polish.Phase("stick", 0, 1),),
+                                 polish.PolishOptions(substeps=2, max_iter=12),
+                                 guess=(np.array([0.0, 1.0]), np.array([x0, x0]),
+                                        np.zeros((10, 2))))
+    out = capsys.readouterr().out
+    assert "    iteration 5: objective" in out and "    iteration 10: objective" in out
+    assert plan.ipopt_status == "Maximum_Iterations_Exceeded" and plan.iterations == 12
+    assert plan.status == "nlp_failed" and not plan.success

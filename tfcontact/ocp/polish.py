@@ -57,6 +57,8 @@ from tfcontact.ocp.contact import (
 from tfcontact.ocp.verify import Verification
 
 STICK, FLIGHT = "stick", "flight"
+PROGRESS_EVERY = 250
+"""A verbose re-solve prints a line every this many IPOPT iterations."""
 TRANSITIONS = {(STICK, "slip+"), (STICK, "slip-"), ("slip+", FLIGHT), ("slip-", FLIGHT),
                (FLIGHT, STICK), (STICK, FLIGHT)}
 """The phase changes the re-solve models. Inside a control interval a foot lifts off
@@ -544,6 +546,15 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
     opti.solver("ipopt", {"print_time": False, "expand": options.expand},
                 {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0,
                  "sb": "yes"})
+    if verbose:  # a long solve says where it is
+        clock = time.perf_counter()
+
+        def progress(i: int) -> None:
+            if i > 0 and i % PROGRESS_EVERY == 0:
+                print(f"    iteration {i}: objective {float(opti.debug.value(opti.f)):.6g}, "
+                      f"{time.perf_counter() - clock:.0f} s", flush=True)
+
+        opti.callback(progress)
     history = []
     status, iterations = "", 0
     values = None
