@@ -158,3 +158,13 @@ def test_reduced_monoped_plan_hops_over_the_hole(tmp_path):
     foot = np.asarray(monoped_problem(REDUCED_TASK).foot(traj.q.T)).T
     x_c, a, b = 0.5, REDUCED_TASK.hole_half_width, REDUCED_TASK.hole_depth
     assert np.all(foot[:, 1] >= b * (1 - ((foot[:, 0] - x_c) / a) ** 2) - 1e-6)  # the bump
+
+
+def test_a_verified_plan_in_a_hole_is_not_a_success():
+    """The replay passes but the foot's nodes lie 1e-3 inside a hole: verification_failed."""
+    plan = _plan("Solve_Succeeded", 1.0)
+    mp = monoped_problem(REDUCED_TASK)
+    assert ExactPlan(plan, mp, (), 0.0, 1.0).success
+    inside = ExactPlan(plan, mp, (), -1e-3, 1.0)
+    assert inside.status == "verification_failed" and not inside.success
+    assert ExactPlan(None, mp, (), float("nan"), 1.0, message="no hop").status == "chain_failed"
