@@ -36,9 +36,12 @@ iterations to the 3000 cap. It handles one frictional planar contact (the monope
 
 from __future__ import annotations
 
+import ctypes
 import itertools
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -68,6 +71,40 @@ lifts off at a control jump (a grid point k T / N): the new control's free norma
 acceleration n^T M^-1 f + (dn/dt)^T v >= 0 opens the contact."""
 
 
+def _casadi_openblas():
+    """CasADi's bundled OpenBLAS (MUMPS's BLAS inside IPOPT), or None if there is none."""
+    for name in ("libcasadi-tp-openblas.so.0", "libcasadi-tp-openblas.so"):
+        path = Path(ca.__file__).parent / name
+        if path.exists():
+            try:
+                lib = ctypes.CDLL(str(path))
+                return lib if hasattr(lib, "openblas_set_num_threads") else None
+            except OSError:
+                return None
+    return None
+
+
+@contextmanager
+def blas_threads(n: int | None):
+    """Run IPOPT's linear algebra (MUMPS on CasADi's OpenBLAS) with n threads, then restore.
+
+    The re-solves' IPOPT paths depend on the rounding, and the rounding on the BLAS thread
+    count: the reduced monoped's first re-solve takes 458 iterations with 2 threads and
+    2284 with 1 (OPENBLAS_NUM_THREADS=1), and the chain then stops at the iteration cap.
+    Fixing the count makes a run follow the measured path on machines of the same kind.
+    None: leave it as it is."""
+    lib = None if n is None else _casadi_openblas()
+    if lib is None:
+        yield
+        return
+    before = int(lib.openblas_get_num_threads())
+    lib.openblas_set_num_threads(int(n))
+    try:
+        yield
+    finally:
+        lib.openblas_set_num_threads(before)
+
+
 @dataclass(frozen=True)
 class PolishOptions:
     """Settings of `polish_contact`.
@@ -88,6 +125,8 @@ class PolishOptions:
         switch_margin: phase switches keep this fraction of a control interval from its
             boundaries (no zero-length pieces).
         tol, max_iter: IPOPT's.
+        blas_threads: threads of IPOPT's BLAS during the solve (`blas_threads`; None: as
+            set). The measured chains ran with 2 (the default on a 2-core machine).
         end_state_tolerance, gap_tolerance, cone_tolerance: the verification's.
     """
 
@@ -102,6 +141,7 @@ class PolishOptions:
     switch_margin: float = 1e-3
     tol: float = 1e-9
     max_iter: int = 3000
+    blas_threads: int | None = 2
     # the verification's tolerances of a time-freezing plan
     end_state_tolerance: float = ContactSolverOptions.end_state_tolerance
     gap_tolerance: float = ContactSolverOptions.gap_tolerance
@@ -111,6 +151,8 @@ class PolishOptions:
         positive_int(self.substeps, "substeps")
         positive_int(self.steps_per_node, "steps_per_node")
         positive_int(self.max_iter, "max_iter")
+        if self.blas_threads is not None:
+            positive_int(self.blas_threads, "blas_threads")
         if not self.cone_margins or not all(0 < c <= 1 for c in self.cone_margins):
             raise InvalidInput(f"`cone_margins` must be numbers in (0, 1], got "
                                f"{self.cone_margins!r}")
@@ -561,7 +603,8 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
     for c in options.cone_margins:
         opti.set_value(margin, c)
         try:
-            sol = opti.solve()
+            with blas_threads(options.blas_threads):
+                sol = opti.solve()
         except RuntimeError:
             sol = opti.debug
         stats = sol.stats()
