@@ -139,7 +139,7 @@ def test_plan_monoped_writes_plan_trajectory_and_replay(monkeypatch, tmp_path, c
 
 
 @pytest.mark.slow
-def test_reduced_monoped_plan_hops_over_the_hole(tmp_path):
+def test_reduced_monoped_exact_plan_hops_over_the_hole(tmp_path):
     """`tfcontact plan monoped --task reduced`: the time-freezing homotopy from the
     start-everywhere guess finds the hop, the exact re-solve makes it a verified plan
     (measured: 778 homotopy iterations, then 458, 122 and 810; objective 176.43, local

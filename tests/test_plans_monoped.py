@@ -110,7 +110,8 @@ def test_bad_task():
     "homotopy ends infeasible, with N = 20 or 6 elements the plans fail the replay too; "
     "the Stewart form (Inelastic(form='stewart')) reaches residual 1e-4, but its plans' "
     "local defects reach 21 (2 stages) and 50 (3 stages); "
-    "see benchmarks/monoped_settings.md",
+    "see benchmarks/monoped_settings.md. The exact re-solve along the sequence this "
+    "homotopy finds gives the verified plan: tests/test_monoped_exact.py",
     strict=True,
     raises=AssertionError,
 )
