@@ -5,7 +5,9 @@ time-freezing OCP of `tfcontact.scenes.monoped` (T = 2.5 s, N = 20, q0 = (0, 0.4
 q(T) = (3, 0.4, 0, 0), cost int u^T u, |u| <= 60, three elliptic holes), discretises it
 with FESD (Radau IIA, 3 stages, N_FE = 3), solves the MPCC homotopy from the
 start-everywhere initial guess (zero controls, every state at y0: no contact schedule)
-and checks the plan independently.
+and checks the plan independently. On the full task this stage alone ends nlp_failed;
+`tfcontact plan monoped` adds the exact re-solve along a found contact sequence
+(`tfcontact.scenes.monoped_exact`) and gives the verified plan.
 
 Writes to `out/monoped/` (or `--out`): `trajectory.npz` + `trajectory.json`, `summary.json`,
 `replay.html` (standalone meshcat page), the standard figures and `path.png` (the foot
