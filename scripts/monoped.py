@@ -193,6 +193,10 @@ def bench_markdown(mp: MonopedProblem, result: ContactResult, checks: dict, args
         "",
         f"Verification: {v.summary()}",
         "",
+        "This is the time-freezing stage alone. The verified plan (`tfcontact plan monoped`: "
+        "this stage on the reduced task, then the exact re-solve along the contact sequence "
+        "it finds): [monoped_exact.md](monoped_exact.md).",
+        "",
         "Times are wall-clock on a 2-core machine shared with other jobs: compare them "
         "only as ratios measured side by side.",
         "",
