@@ -163,7 +163,9 @@ def reduced_exact_plan(verbose: bool = True) -> ExactPlan:
         print("monoped (reduced): the time-freezing homotopy from the start-everywhere guess",
               flush=True)
     relaxed = solve_contact(mp.problem, options, verbose=verbose)
-    steps = [ChainStep("time-freezing homotopy (reduced task)", relaxed.status,
+    history = relaxed.ocp.mpcc_result.history
+    steps = [ChainStep("time-freezing homotopy (reduced task)",
+                       history[-1].ipopt_status if history else "none",
                        relaxed.ocp.total_iterations, time.perf_counter() - start,
                        float(relaxed.ocp.cost), relaxed.status)]
     found = contact_phases(relaxed)
@@ -179,9 +181,7 @@ def reduced_exact_plan(verbose: bool = True) -> ExactPlan:
               ("exact re-solve, 16 nodes", PolishOptions(substeps=16, painleve_margin=0.0)),
               ("exact re-solve, 16 nodes x 2 RK4 steps",
                PolishOptions(substeps=16, steps_per_node=2, painleve_margin=0.0))]
-    source = relaxed
-    guess = None
-    return _chain(levels, mp, lambda _: mp, source, phases, guess, steps, start, verbose)
+    return _chain(levels, mp, lambda _: mp, relaxed, phases, None, steps, start, verbose)
 
 
 def _chain(levels, final_problem: MonopedProblem, problem_of, source, phases, guess,
