@@ -51,9 +51,9 @@ def test_a_capped_step_hands_its_iterate_on_and_the_last_is_solved_again(monkeyp
 
     monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
     mp = monoped_problem(REDUCED_TASK)
-    levels = [("first", None), ("second", None)]
-    result = chain_module._chain(levels, mp, lambda _: mp, None, (Phase(STICK, 0, 1),), None,
-                                 [], 0.0, verbose=False)
+    levels = [("first", mp, None), ("second", mp, None)]
+    result = chain_module._chain(levels, None, (Phase(STICK, 0, 1),), None, [], 0.0,
+                                 verbose=False)
     assert guesses == [None, 1.0, 2.0]  # each solve starts from the last iterate
     assert [s.name for s in result.steps] == ["first", "second",
                                               "second, again from its capped iterate"]
@@ -69,7 +69,7 @@ def test_any_other_failure_stops_the_chain(monkeypatch):
 
     monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
     mp = monoped_problem(REDUCED_TASK)
-    result = chain_module._chain([("first", None), ("second", None)], mp, lambda _: mp, None,
+    result = chain_module._chain([("first", mp, None), ("second", mp, None)], None,
                                  (Phase(STICK, 0, 1),), None, [], 0.0, verbose=False)
     assert len(calls) == 1 and result.status == "nlp_failed" and not result.success
     assert "first: IPOPT Infeasible_Problem_Detected" in result.summary()

@@ -207,7 +207,6 @@ class PolishedPlan:
     solve_time: float
     verification: Verification
     history: tuple[tuple[float, str, int], ...] = field(default=())
-    clocks: np.ndarray | None = None
 
     @property
     def solved(self) -> bool:
@@ -651,7 +650,7 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
         phases=polished_phases, t=times, x=node_x, u=u_value, boundary_states=boundary_x,
         contact_forces=forces, impact_impulses=impact_values, cost=float(sol.value(opti.f)),
         ipopt_status=status, iterations=iterations, solve_time=solve_time,
-        verification=verification, history=tuple(history), clocks=clocks)
+        verification=verification, history=tuple(history))
     if verbose:
         print(plan.summary(), flush=True)
     return plan

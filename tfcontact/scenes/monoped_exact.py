@@ -177,27 +177,27 @@ def reduced_exact_plan(verbose: bool = True) -> ExactPlan:
     lift_off = found[1].start
     phases = (Phase(STICK, 0.0, SLIP_START), Phase("slip-", SLIP_START, lift_off),
               Phase(FLIGHT, lift_off, found[1].end), Phase(STICK, found[2].start, 1.0))
-    levels = [("exact re-solve, 8 nodes", PolishOptions(substeps=8, painleve_margin=0.0)),
-              ("exact re-solve, 16 nodes", PolishOptions(substeps=16, painleve_margin=0.0)),
-              ("exact re-solve, 16 nodes x 2 RK4 steps",
+    levels = [("exact re-solve, 8 nodes", mp, PolishOptions(substeps=8, painleve_margin=0.0)),
+              ("exact re-solve, 16 nodes", mp, PolishOptions(substeps=16, painleve_margin=0.0)),
+              ("exact re-solve, 16 nodes x 2 RK4 steps", mp,
                PolishOptions(substeps=16, steps_per_node=2, painleve_margin=0.0))]
-    return _chain(levels, mp, lambda _: mp, relaxed, phases, None, steps, start, verbose)
+    return _chain(levels, relaxed, phases, None, steps, start, verbose)
 
 
-def _chain(levels, final_problem: MonopedProblem, problem_of, source, phases, guess,
-           steps: list[ChainStep], start: float, verbose: bool) -> ExactPlan:
-    """Run the re-solves `levels` [(name, PolishOptions)] in order, each from the last; a
+def _chain(levels, source, phases, guess, steps: list[ChainStep], start: float,
+           verbose: bool) -> ExactPlan:
+    """Run the re-solves `levels` [(name, MonopedProblem, PolishOptions)] in order, each
+    from the last (the first from `source`, a relaxed plan, or from `guess`); a
     step at the iteration cap hands its iterate on, the last one is solved once more from
     its own iterate; other failures stop the chain (module docstring)."""
     plan = None
-    for i, (name, options) in enumerate(levels):
+    for i, (name, problem, options) in enumerate(levels):
         last = i == len(levels) - 1
         for attempt in range(2 if last else 1):
             label = name if attempt == 0 else f"{name}, again from its capped iterate"
             if verbose:
                 print(f"monoped: {label}", flush=True)
             begin = time.perf_counter()
-            problem = problem_of(i)
             plan = polish_contact(types.SimpleNamespace(problem=problem.problem)
                                   if source is None else source, phases, options,
                                   verbose=verbose, guess=guess)
@@ -206,13 +206,13 @@ def _chain(levels, final_problem: MonopedProblem, problem_of, source, phases, gu
             if plan.ipopt_status != CAPPED:
                 break
         if not plan.solved and plan.ipopt_status != CAPPED:
-            return ExactPlan(plan, final_problem, tuple(steps), _hole_value(problem, plan),
+            return ExactPlan(plan, problem, tuple(steps), _hole_value(problem, plan),
                              time.perf_counter() - start,
                              message=f"{name}: IPOPT {plan.ipopt_status}")
         if not plan.solved and verbose and not last:
             print(f"monoped: {name} stopped at the iteration cap; its iterate starts the next "
                   "step", flush=True)
-    return ExactPlan(plan, final_problem, tuple(steps), _hole_value(final_problem, plan),
+    return ExactPlan(plan, problem, tuple(steps), _hole_value(problem, plan),
                      time.perf_counter() - start,
                      message="" if plan.solved else f"{levels[-1][0]}: IPOPT {plan.ipopt_status}")
 
@@ -275,11 +275,10 @@ def full_exact_plan(verbose: bool = True) -> ExactPlan:
     guess, phases = tiled_guess(reduced.plan, EXACT_TASK)
     options = {n: PolishOptions(substeps=n, steps_per_node=2, painleve_margin=0.0)
                for n in (8, 16)}
-    levels = [("full task, bump holes, 8 nodes x 2 RK4 steps", options[8]),
-              ("full task, bump holes, 16 nodes x 2 RK4 steps", options[16]),
-              ("full task, TF-9's ellipses, 16 nodes x 2 RK4 steps", options[16])]
-    return _chain(levels, ellipses, lambda i: ellipses if i == 2 else bumps, None, phases,
-                  guess, steps, start, verbose)
+    levels = [("full task, bump holes, 8 nodes x 2 RK4 steps", bumps, options[8]),
+              ("full task, bump holes, 16 nodes x 2 RK4 steps", bumps, options[16]),
+              ("full task, TF-9's ellipses, 16 nodes x 2 RK4 steps", ellipses, options[16])]
+    return _chain(levels, None, phases, guess, steps, start, verbose)
 
 
 # ---- saved plans -------------------------------------------------------------------------
