@@ -57,7 +57,7 @@ from tfcontact.ocp.contact import (
     _local_defects,
     _reference_deviation,
 )
-from tfcontact.ocp.verify import Verification
+from tfcontact.ocp.verify import Verification, friction_cone_violation
 
 STICK, FLIGHT = "stick", "flight"
 PROGRESS_EVERY = 250
@@ -677,8 +677,7 @@ def _verify(cls, problem: ContactProblem, clocks: np.ndarray, boundary_x: np.nda
     min_gap = float(gaps.min())
     # Forces [N] in the cone at the stick nodes, impulses [N s] at the touchdowns.
     both = np.vstack([forces, impulses]) if len(impulses) else forces
-    cone = float(np.max(np.maximum.reduce([np.abs(both[:, 1]) - dyn.mu * both[:, 0],
-                                           -both[:, 0], np.zeros(len(both))]), initial=0.0))
+    cone = friction_cone_violation(both, [dyn.mu], [1])
     largest = float(np.max(np.abs(both[:, 0]), initial=0.0))
     notes.append(f"cone checked on {len(forces)} stick nodes (forces, N) and {len(impulses)} "
                  f"touchdown impulses (N s); tolerance {options.cone_tolerance:g} x the "
