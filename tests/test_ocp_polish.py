@@ -71,6 +71,45 @@ def test_stick_pins_the_rods_end_like_a_pendulum_pivot():
         rtol=1e-12)
 
 
+def _collocate(rhs, tableau, x0, u, span, n_elements):
+    """Integrate by solving one element's collocation equations after the other."""
+    import casadi as ca
+
+    n, s = x0.size, tableau.stages
+    unknown, x_sym = ca.SX.sym("z", n * s), ca.SX.sym("x", n)
+    stages = [unknown[j * n:(j + 1) * n] for j in range(s)]
+    h = span / n_elements
+    residual = ca.vertcat(*polish.collocation_residuals(rhs, tableau, x_sym, stages, u, h))
+    solve = ca.rootfinder("element", "newton", ca.Function("r", [unknown, x_sym], [residual]),
+                          {"abstol": 1e-13})
+    x = np.asarray(x0, dtype=float)
+    for _ in range(n_elements):
+        z = np.asarray(solve(np.tile(x, s), x)).ravel()
+        x = z[-n:]  # Radau IIA: the last stage is the element's end
+    return x
+
+
+def test_radau_elements_of_the_stuck_rod_converge_with_order_five():
+    """Radau IIA with 3 stages (TF-9's scheme, `integrator="radau"`) on the rod pinned at
+    its end (a pendulum): halving the elements divides the end error by about 2^5."""
+    from tfcontact.fesd.tableau import RadauIIA
+
+    length, theta, span = 1.0, 0.7, 0.4
+    dyn = polish._Dynamics(painleve_rod(mu=0.5, length=length))
+    x0 = np.array([0.2 + length / 2 * np.cos(theta), length / 2 * np.sin(theta), theta,
+                   0.0, 0.0, 0.0])
+    rhs = dyn.rhs[polish.STICK]
+    exact = x0  # 2000 RK4 steps: error about 1e-14
+    for _ in range(2000):
+        exact = np.asarray(dyn.step(polish.STICK, exact, np.zeros(0), span / 2000)).ravel()
+    tableau = RadauIIA(3).tableau()
+    errors = [np.abs(_collocate(rhs, tableau, x0, np.zeros(0), span, n) - exact).max()
+              for n in (4, 8, 16)]
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert errors[-1] < 1e-5  # measured 1.6e-6 with 16 elements
+    assert np.all(orders > 4.5), (errors, orders)
+
+
 def test_sticking_impact_stops_the_contact_point():
     """A particle of mass 3 landing with v = (1, -2) m/s: the sticking impact stops it,
     impulse (6, -3) N s."""
@@ -118,6 +157,10 @@ def test_phase_changes_the_re_solve_does_not_model_are_named():
         polish.polish_contact(None, (polish.Phase(polish.FLIGHT, 0, 1),))
     with pytest.raises(InvalidInput, match="cone_margins"):
         polish.PolishOptions(cone_margins=(1.0, 1.2))
+    with pytest.raises(InvalidInput, match="'rk4' or 'radau'"):
+        polish.PolishOptions(integrator="euler")
+    with pytest.raises(InvalidInput, match="elements per interval are `substeps`"):
+        polish.PolishOptions(integrator="radau", steps_per_node=2)
 
 
 def test_a_lift_off_straight_from_stick_must_be_at_a_control_jump():
@@ -179,6 +222,29 @@ def test_the_saved_full_plan_fails_with_one_control_moved(saved_full_plan, tmp_p
     verification, _ = verify_saved(tmp_path / "moved.npz")
     assert not verification.passed
     assert verification.local_defects[4] > 5e-2
+
+
+def test_tf9s_grid_re_solves_the_saved_plan_but_fails_the_exact_replay(saved_full_plan):
+    """TF-9's own discretisation, Radau IIA order 5 with N_FE = 3 elements per control
+    interval, warm started from the verified plan: IPOPT converges, but the leg's fast
+    swings (joint velocities near 100 rad/s before each touchdown) are too fast for
+    elements of 42 ms, and the exact replay from the plan's own states parts from it by
+    more than 1 within one interval. Measured: 32 iterations, largest defect 14."""
+    from types import SimpleNamespace
+
+    from tfcontact.scenes.monoped import monoped_problem
+    from tfcontact.scenes.monoped_exact import EXACT_TASK, saved_phases
+
+    plan = saved_full_plan
+    polished = polish.polish_contact(
+        SimpleNamespace(problem=monoped_problem(EXACT_TASK).problem), saved_phases(plan),
+        polish.PolishOptions(substeps=3, integrator="radau", painleve_margin=0.0),
+        guess=(plan["t"], plan["x"], plan["u"]), verbose=False)
+    assert polished.solved
+    assert polished.status == "verification_failed"
+    assert max(polished.verification.local_defects) > 1.0
+    # its nodes are the stage points: 3 per element, two at each of the 3 touchdowns
+    assert len(polished.t) >= 1 + 20 * 3 * 3 + 3
 
 
 def test_a_capped_re_solve_reports_progress_and_fails_honestly(monkeypatch, capsys):

@@ -47,6 +47,7 @@ import casadi as ca
 import numpy as np
 
 from tfcontact.errors import InvalidInput, TfcontactError, positive_int
+from tfcontact.fesd.tableau import RadauIIA
 from tfcontact.ocp.contact import (
     LOCAL_DEFECT_IMPACT_WINDOW,
     ContactProblem,
@@ -114,6 +115,12 @@ class PolishOptions:
             share, at least 2).
         steps_per_node: RK4 steps from one node to the next (more accuracy without more
             variables).
+        integrator: "rk4" (explicit RK4 multiple shooting) or "radau": Radau IIA
+            collocation with `radau_stages` stages (order 2 s - 1), `substeps` finite
+            elements per control interval, the stage states variables constrained like
+            the nodes (FESD on a fixed active set: the switches sit at element
+            boundaries, their times free).
+        radau_stages: stages of the Radau IIA elements (3: order 5, TF-9's).
         expand: expand the whole NLP into one SX graph (fast per iteration; the full task
             with 16 x 4 RK4 steps took more than 16 GB to build). False: each RK4 step is
             one SX function called from an MX graph (small, slower per iteration).
@@ -132,6 +139,8 @@ class PolishOptions:
 
     substeps: int = 16
     steps_per_node: int = 1
+    integrator: str = "rk4"
+    radau_stages: int = 3
     expand: bool = True
     baumgarte: float = 20.0
     painleve_margin: float = 0.05
@@ -151,6 +160,12 @@ class PolishOptions:
         positive_int(self.substeps, "substeps")
         positive_int(self.steps_per_node, "steps_per_node")
         positive_int(self.max_iter, "max_iter")
+        positive_int(self.radau_stages, "radau_stages")
+        if self.integrator not in ("rk4", "radau"):
+            raise InvalidInput(f"`integrator` must be 'rk4' or 'radau', got {self.integrator!r}")
+        if self.integrator == "radau" and self.steps_per_node != 1:
+            raise InvalidInput("`steps_per_node` is RK4's; with integrator='radau' the "
+                               "elements per interval are `substeps`")
         if self.blas_threads is not None:
             positive_int(self.blas_threads, "blas_threads")
         if not self.cone_margins or not all(0 < c <= 1 for c in self.cone_margins):
@@ -350,6 +365,15 @@ def touchdown_rows(w, v_n, v_t, sign: float, mu, cone_margin=1.0) -> list[tuple]
             (cone_margin * mu * w[1, 1] - w[1, 0], 0), (cone_margin * mu * w[1, 1] + w[1, 0], 0)]
 
 
+def collocation_residuals(rhs, tableau, x, stages, u, h) -> list:
+    """The collocation equations of one element from state x over [0, h]:
+    z_j - x - h sum_m A_jm rhs(z_m, u), one per stage state z_j (each zero at a solution;
+    with Radau IIA the last stage is the element's end). Numbers or CasADi expressions."""
+    slopes = [rhs(z, u) for z in stages]
+    return [z - x - h * sum(tableau.A[j, m] * slopes[m] for m in range(len(stages)))
+            for j, z in enumerate(stages)]
+
+
 def _interpolate(t: np.ndarray, x: np.ndarray, at: float) -> np.ndarray:
     i = int(np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 2))
     w = float(np.clip((at - t[i]) / max(t[i + 1] - t[i], 1e-12), 0.0, 1.0))
@@ -390,6 +414,8 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
     cls = system.cls
     _check_system(cls)
     dyn = _Dynamics(cls, options.baumgarte)
+    radau = options.integrator == "radau"
+    tableau = RadauIIA(options.radau_stages).tableau() if radau else None
     n_q, n_u = cls.n_q, cls.n_u
     n_int, horizon = problem.n_intervals, problem.horizon
     dt = horizon / n_int
@@ -533,12 +559,31 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
                 + [(grid[k + 1], grid_guess[k + 1], None)])
         for (ta, ga, _), (tb, gb, jb) in itertools.pairwise(cuts):
             mode = phases[mode_index].mode
-            n_steps = max(2, round(options.substeps * (gb - ga)
-                                   / max(grid_guess[k + 1] - grid_guess[k], 1e-12)))
+            n_steps = max(1 if radau else 2,
+                          round(options.substeps * (gb - ga)
+                                / max(grid_guess[k + 1] - grid_guess[k], 1e-12)))
             h = (tb - ta) / n_steps
             if isinstance(h, ca.MX):
-                opti.subject_to(h <= 1.5 * dt / options.substeps)  # no long RK4 steps
+                opti.subject_to(h <= 1.5 * dt / options.substeps)  # no long steps
             for i in range(n_steps):
+                if radau:  # one collocation element; its last stage is its end (c_s = 1)
+                    t0 = ta + i * h
+                    stages = []
+                    for j in range(tableau.stages):
+                        z = opti.variable(2 * n_q)
+                        opti.set_initial(z, _interpolate(
+                            guess_t, guess_x, ga + (i + tableau.c[j]) * (gb - ga) / n_steps))
+                        stages.append(z)
+                    for j, (z, residual) in enumerate(zip(
+                            stages, collocation_residuals(dyn.rhs[mode], tableau, x, stages,
+                                                          u_k, h), strict=True)):
+                        opti.subject_to(residual == 0)
+                        cost = cost + h * tableau.b[j] * running(
+                            y_of(z, t0 + tableau.c[j] * h), u_k)
+                        nodes.append((t0 + tableau.c[j] * h, z))
+                        constrain_node(z, t0 + tableau.c[j] * h, u_k, mode)
+                    x = stages[-1]
+                    continue
                 if options.expand:
                     x_next = x
                     for _ in range(options.steps_per_node):  # RK4 steps between two nodes

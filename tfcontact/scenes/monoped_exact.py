@@ -295,6 +295,14 @@ def save_exact_plan(plan: PolishedPlan, path: str | Path) -> Path:
     return path
 
 
+def saved_phases(plan: Any) -> tuple[Phase, ...]:
+    """The contact sequence of a plan saved by `save_exact_plan`."""
+    starts = [float(s) for s in plan["phase_starts"]]
+    ends = starts[1:] + [float(plan["t"][-1])]
+    return tuple(Phase(str(m), a, b)
+                 for m, a, b in zip(plan["phase_modes"], starts, ends, strict=True))
+
+
 def contact_values(plan: Any, dyn: _Dynamics, horizon: float) -> tuple[np.ndarray, np.ndarray]:
     """(stick forces (n, 2) [N], touchdown impulses (m, 2) [N s]) of a saved plan: the
     stick force at both ends of every RK4 segment inside a stick phase, with that
