@@ -16,6 +16,7 @@ from tfcontact.scenes.particles import G, painleve_rod, point_mass
 from tfcontact.timefreezing.reference import _planar_impulse_flow
 
 SAVED_PLAN = Path(__file__).resolve().parents[1] / "benchmarks" / "monoped_exact_plan.npz"
+RK4_PLAN = SAVED_PLAN.with_name("monoped_exact_rk4_plan.npz")  # the Radau levels' start
 
 
 def test_stick_holds_a_pushed_particle_with_the_opposing_friction():
@@ -224,9 +225,24 @@ def test_the_saved_full_plan_fails_with_one_control_moved(saved_full_plan, tmp_p
     assert verification.local_defects[4] > 5e-2
 
 
-def test_tf9s_grid_re_solves_the_saved_plan_but_fails_the_exact_replay(saved_full_plan):
+def test_the_mesh_is_refined_where_the_local_defects_exceed_their_share():
+    """Tolerance 0.05 over 4 intervals: a share of 0.0125 each; the second interval and the
+    one the reference could not replay (nan) get twice the elements."""
+    got = polish.refined_substeps((12, 12, 6, 12), [1e-3, 0.03, float("nan"), 0.0125], 0.05)
+    assert got == (12, 24, 12, 12)
+    assert polish.PolishOptions(substeps=(3, 4)).substeps_per_interval(2) == (3, 4)
+    assert polish.PolishOptions(substeps=5).substeps_per_interval(3) == (5, 5, 5)
+    with pytest.raises(InvalidInput, match="2 counts for 3 control intervals"):
+        polish.PolishOptions(substeps=(3, 4)).substeps_per_interval(3)
+    with pytest.raises(InvalidInput, match="3 local defects for 2 intervals"):
+        polish.refined_substeps((3, 4), [0.1, 0.2, 0.3], 0.05)
+    with pytest.raises(InvalidInput, match="substeps"):
+        polish.PolishOptions(substeps=(3, 0))
+
+
+def test_tf9s_grid_re_solves_the_rk4_plan_but_fails_the_exact_replay():
     """TF-9's own discretisation, Radau IIA order 5 with N_FE = 3 elements per control
-    interval, warm started from the verified plan: IPOPT converges, but the leg's fast
+    interval, warm started from the verified RK4 plan: IPOPT converges, but the leg's fast
     swings (joint velocities near 100 rad/s before each touchdown) are too fast for
     elements of 42 ms, and the exact replay from the plan's own states parts from it by
     more than 1 within one interval. Measured: 32 iterations, largest defect 14."""
@@ -235,7 +251,7 @@ def test_tf9s_grid_re_solves_the_saved_plan_but_fails_the_exact_replay(saved_ful
     from tfcontact.scenes.monoped import monoped_problem
     from tfcontact.scenes.monoped_exact import EXACT_TASK, saved_phases
 
-    plan = saved_full_plan
+    plan = np.load(RK4_PLAN)
     polished = polish.polish_contact(
         SimpleNamespace(problem=monoped_problem(EXACT_TASK).problem), saved_phases(plan),
         polish.PolishOptions(substeps=3, integrator="radau", painleve_margin=0.0),

@@ -23,7 +23,9 @@ of phases and re-solves the OCP as a smooth NLP with the original system's dynam
 Controls are piecewise constant on the fixed grid k T / N; each control interval is cut at
 the switches inside it and every piece integrated by RK4 (`substeps` shooting nodes per
 interval, `steps_per_node` RK4 steps between two, nodes at most 1.5 T / (N substeps)
-apart), multiple shooting. Optional Painleve margin
+apart), multiple shooting; or (`integrator="radau"`) by Radau IIA collocation, `substeps`
+elements per interval, each stage state a node: FESD with the active set fixed, the
+switches at element boundaries. Optional Painleve margin
 W_nn -+ mu W_nt >= delta at contact nodes. The result is checked like a time-freezing plan
 (replay, local defects, kicked sensitivity).
 
@@ -112,7 +114,8 @@ class PolishOptions:
 
     Args:
         substeps: shooting nodes per control interval (a piece of an interval gets its
-            share, at least 2).
+            share, at least 2), or a tuple of one count per interval (a mesh refined
+            where the local defects are large, `refined_substeps`).
         steps_per_node: RK4 steps from one node to the next (more accuracy without more
             variables).
         integrator: "rk4" (explicit RK4 multiple shooting) or "radau": Radau IIA
@@ -137,7 +140,7 @@ class PolishOptions:
         end_state_tolerance, gap_tolerance, cone_tolerance: the verification's.
     """
 
-    substeps: int = 16
+    substeps: int | tuple[int, ...] = 16
     steps_per_node: int = 1
     integrator: str = "rk4"
     radau_stages: int = 3
@@ -157,7 +160,13 @@ class PolishOptions:
     cone_tolerance: float = ContactSolverOptions.cone_tolerance
 
     def __post_init__(self) -> None:
-        positive_int(self.substeps, "substeps")
+        if isinstance(self.substeps, tuple):
+            if not self.substeps:
+                raise InvalidInput("`substeps` is an empty tuple")
+            for n in self.substeps:
+                positive_int(n, "substeps")
+        else:
+            positive_int(self.substeps, "substeps")
         positive_int(self.steps_per_node, "steps_per_node")
         positive_int(self.max_iter, "max_iter")
         positive_int(self.radau_stages, "radau_stages")
@@ -180,6 +189,29 @@ class PolishOptions:
         for name in ("tol", "end_state_tolerance", "gap_tolerance", "cone_tolerance"):
             if not getattr(self, name) > 0:
                 raise InvalidInput(f"`{name}` must be positive, got {getattr(self, name)}")
+
+    def substeps_per_interval(self, n_intervals: int) -> tuple[int, ...]:
+        """`substeps` for each of `n_intervals` control intervals."""
+        if not isinstance(self.substeps, tuple):
+            return (self.substeps,) * n_intervals
+        if len(self.substeps) != n_intervals:
+            raise InvalidInput(f"`substeps` gives {len(self.substeps)} counts for "
+                               f"{n_intervals} control intervals")
+        return self.substeps
+
+
+def refined_substeps(substeps: tuple[int, ...], local_defects, tolerance: float,
+                     factor: int = 2) -> tuple[int, ...]:
+    """A mesh refined where a plan's local defects exceed their share of the tolerance:
+    `factor` x the elements of each interval whose defect exceeds tolerance / N (or that
+    the reference could not replay, nan), the others kept. The defects then sum to within
+    the tolerance once each interval is within its share."""
+    defects = np.asarray(local_defects, dtype=float)
+    if defects.shape != (len(substeps),):
+        raise InvalidInput(f"{defects.size} local defects for {len(substeps)} intervals")
+    share = tolerance / len(substeps)
+    return tuple(int(n * factor) if not d <= share else int(n)
+                 for n, d in zip(substeps, defects, strict=True))
 
 
 @dataclass(frozen=True)
@@ -207,6 +239,7 @@ class PolishedPlan:
         cost: the objective.
         ipopt_status: IPOPT's return status of the last NLP; iterations: over all NLPs.
         solve_time: seconds (build and solves); verification: the independent checks.
+        integrator, substeps: the options' integrator and nodes or elements per interval.
     """
 
     phases: tuple[Phase, ...]
@@ -222,6 +255,8 @@ class PolishedPlan:
     solve_time: float
     verification: Verification
     history: tuple[tuple[float, str, int], ...] = field(default=())
+    integrator: str = "rk4"
+    substeps: tuple[int, ...] = ()
 
     @property
     def solved(self) -> bool:
@@ -243,9 +278,16 @@ class PolishedPlan:
         return "\n".join([
             (f"polish: {self.status} (IPOPT {self.ipopt_status}, {self.iterations} "
              f"iterations, {self.solve_time:.1f} s; {steps})"),
+            f"polish: {self.integrator}, {_mesh(self.substeps)} per control interval",
             f"polish: objective {self.cost:.6g}; phases {switches}",
             f"polish: {self.verification.summary()}",
         ])
+
+
+def _mesh(substeps: tuple[int, ...]) -> str:
+    if len(set(substeps)) <= 1:
+        return f"{substeps[0] if substeps else '?'} steps"
+    return "steps " + " ".join(str(n) for n in substeps)
 
 
 def contact_phases(result: ContactResult, options: PolishOptions | None = None
@@ -426,6 +468,7 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
             raise InvalidInput(f"a lift-off straight from stick (at {after.start:.4g} s) must be "
                                f"at a control jump k T / N (T / N = {dt:g} s); inside an "
                                "interval the foot lifts off through slip")
+    substeps = options.substeps_per_interval(n_int)
     start = time.perf_counter()
 
     if guess is not None:  # an earlier polished plan: (t, x, u)
@@ -560,11 +603,11 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
         for (ta, ga, _), (tb, gb, jb) in itertools.pairwise(cuts):
             mode = phases[mode_index].mode
             n_steps = max(1 if radau else 2,
-                          round(options.substeps * (gb - ga)
+                          round(substeps[k] * (gb - ga)
                                 / max(grid_guess[k + 1] - grid_guess[k], 1e-12)))
             h = (tb - ta) / n_steps
             if isinstance(h, ca.MX):
-                opti.subject_to(h <= 1.5 * dt / options.substeps)  # no long steps
+                opti.subject_to(h <= 1.5 * dt / substeps[k])  # no long steps
             for i in range(n_steps):
                 if radau:  # one collocation element; its last stage is its end (c_s = 1)
                     t0 = ta + i * h
@@ -580,7 +623,10 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
                         opti.subject_to(residual == 0)
                         cost = cost + h * tableau.b[j] * running(
                             y_of(z, t0 + tableau.c[j] * h), u_k)
-                        nodes.append((t0 + tableau.c[j] * h, z))
+                        # a piece's last node at its end time exactly (ta + n h may differ
+                        # from tb in the last bit; a touchdown's two nodes share one time)
+                        last = i == n_steps - 1 and j == tableau.stages - 1
+                        nodes.append((tb if last else t0 + tableau.c[j] * h, z))
                         constrain_node(z, t0 + tableau.c[j] * h, u_k, mode)
                     x = stages[-1]
                     continue
@@ -596,7 +642,7 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
                 opti.subject_to(x == x_next)
                 t_guess = ga + (i + 1) * (gb - ga) / n_steps
                 opti.set_initial(x, _interpolate(guess_t, guess_x, t_guess))
-                nodes.append((ta + (i + 1) * h, x))
+                nodes.append((tb if i == n_steps - 1 else ta + (i + 1) * h, x))
                 constrain_node(x, ta + (i + 1) * h, u_k, mode)
             if jb is None:
                 continue
@@ -695,7 +741,8 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
         phases=polished_phases, t=times, x=node_x, u=u_value, boundary_states=boundary_x,
         contact_forces=forces, impact_impulses=impact_values, cost=float(sol.value(opti.f)),
         ipopt_status=status, iterations=iterations, solve_time=solve_time,
-        verification=verification, history=tuple(history))
+        verification=verification, history=tuple(history), integrator=options.integrator,
+        substeps=substeps)
     if verbose:
         print(plan.summary(), flush=True)
     return plan

@@ -16,6 +16,10 @@ converges and finds one hop: stick, flight, stick. The chain:
    of half width 0.25 as in the authors' robot_ocp.m) along that schedule with free
    touchdowns: with bump holes (8 nodes x 2 RK4 steps, then 16 x 2), then with TF-9's
    ellipses (16 x 2).
+4. `radau_levels`: TF-9's scheme, Radau IIA order 5 collocation (FESD with the active
+   set fixed), on `RADAU_ELEMENTS` elements per interval, then on that mesh refined where
+   the plan's local defects exceed their share of the tolerance. TF-9's own 3 elements
+   per interval are too coarse for this motion (`RADAU_ELEMENTS`).
 
 The re-solves are fragile: one rerun of the chain found another local solution and
 stopped at IPOPT's iteration cap in its second step, and the ellipse re-solve from that
@@ -47,6 +51,7 @@ from tfcontact.ocp.polish import (
     _verify,
     contact_phases,
     polish_contact,
+    refined_substeps,
 )
 from tfcontact.ocp.verify import Verification
 from tfcontact.scenes.monoped import (
@@ -72,6 +77,14 @@ HOP_LIFT_OFF, HOP_TOUCHDOWN = 0.6, 0.89
 SLIP_START = 0.55
 """Guessed start [s] of the reduced hop's slip before its lift-off."""
 CAPPED = "Maximum_Iterations_Exceeded"
+RADAU_ELEMENTS = 12
+"""Radau IIA elements per control interval of the last re-solves. TF-9's own N_FE = 3
+re-solves the RK4 plan (32 iterations) into a plan whose exact replay parts from it by 14
+in one interval: the leg swings at up to 100 rad/s before each touchdown."""
+RADAU_CONE_MARGIN = 0.98
+"""The Radau re-solves keep the stick forces within 0.98 mu lambda_n: with the full cone
+(1.0) the 12-element plan stuck on the cone's edge in one interval, where the exact replay
+slipped and parted from it by 3.2."""
 HOLE_TOLERANCE = 1e-6
 """A plan enters a hole if its smallest hole value is below -HOLE_TOLERANCE."""
 
@@ -186,13 +199,16 @@ def reduced_exact_plan(verbose: bool = True) -> ExactPlan:
 
 def _chain(levels, source, phases, guess, steps: list[ChainStep], start: float,
            verbose: bool) -> ExactPlan:
-    """Run the re-solves `levels` [(name, MonopedProblem, PolishOptions)] in order, each
-    from the last (the first from `source`, a relaxed plan, or from `guess`); a
+    """Run the re-solves `levels` [(name, MonopedProblem, PolishOptions or a function
+    (last plan, problem) -> PolishOptions)] in order, each from the last (the first from
+    `source`, a relaxed plan, or from `guess`); a
     step at the iteration cap hands its iterate on, the last one is solved once more from
     its own iterate; other failures stop the chain (module docstring)."""
     plan = None
     for i, (name, problem, options) in enumerate(levels):
         last = i == len(levels) - 1
+        if callable(options):  # settings that depend on the last plan (a refined mesh)
+            options = options(plan, problem)
         for attempt in range(2 if last else 1):
             label = name if attempt == 0 else f"{name}, again from its capped iterate"
             if verbose:
@@ -259,9 +275,8 @@ def tiled_guess(hop: PolishedPlan, task=EXACT_TASK):
 
 
 def full_exact_plan(verbose: bool = True) -> ExactPlan:
-    """TF-9's task (`EXACT_TASK`) by the chain of the module docstring. About 35 to 55
-    minutes on a 2-core machine (the measured runs: 2450 and 1389 iterations in the
-    ellipse step)."""
+    """TF-9's task (`EXACT_TASK`) by the chain of the module docstring. About an hour on
+    a 2-core machine (benchmarks/monoped_exact.md)."""
     start = time.perf_counter()
     reduced = reduced_exact_plan(verbose)
     steps = list(reduced.steps)
@@ -277,8 +292,34 @@ def full_exact_plan(verbose: bool = True) -> ExactPlan:
                for n in (8, 16)}
     levels = [("full task, bump holes, 8 nodes x 2 RK4 steps", bumps, options[8]),
               ("full task, bump holes, 16 nodes x 2 RK4 steps", bumps, options[16]),
-              ("full task, TF-9's ellipses, 16 nodes x 2 RK4 steps", ellipses, options[16])]
+              ("full task, TF-9's ellipses, 16 nodes x 2 RK4 steps", ellipses, options[16]),
+              *radau_levels(ellipses)]
     return _chain(levels, None, phases, guess, steps, start, verbose)
+
+
+def radau_options(substeps: int | tuple[int, ...] = RADAU_ELEMENTS) -> PolishOptions:
+    """TF-9's scheme (Radau IIA, order 5) on `substeps` elements per control interval,
+    the stick forces kept 2 % inside the friction cone (`RADAU_CONE_MARGIN`)."""
+    return PolishOptions(substeps=substeps, integrator="radau", painleve_margin=0.0,
+                         cone_margins=(RADAU_CONE_MARGIN,))
+
+
+def refine_by_defects(plan: PolishedPlan, problem: MonopedProblem) -> PolishOptions:
+    """`radau_options` on the last plan's mesh, its elements doubled in each interval whose
+    local defect exceeds its share of the verification's tolerance (`refined_substeps`)."""
+    n = problem.task.n_intervals
+    mesh = plan.substeps if plan.substeps else (RADAU_ELEMENTS,) * n
+    return radau_options(refined_substeps(mesh, plan.verification.local_defects,
+                                          PolishOptions().end_state_tolerance))
+
+
+def radau_levels(problem: MonopedProblem) -> list:
+    """The chain's last two re-solves: TF-9's Radau IIA order 5 on `RADAU_ELEMENTS`
+    elements per interval, then on that mesh refined where its local defects are large."""
+    return [(f"full task, TF-9's ellipses, Radau IIA order 5, {RADAU_ELEMENTS} elements per "
+             "interval", problem, radau_options()),
+            ("full task, TF-9's ellipses, Radau IIA order 5, mesh refined by the local "
+             "defects", problem, refine_by_defects)]
 
 
 # ---- saved plans -------------------------------------------------------------------------
@@ -291,7 +332,8 @@ def save_exact_plan(plan: PolishedPlan, path: str | Path) -> Path:
     np.savez(path, t=plan.t, x=plan.x, u=plan.u, boundary=plan.boundary_states,
              phase_modes=np.array([p.mode for p in plan.phases]),
              phase_starts=np.array([p.start for p in plan.phases]),
-             local_defects=np.asarray(plan.verification.local_defects))
+             local_defects=np.asarray(plan.verification.local_defects),
+             integrator=plan.integrator, substeps=np.asarray(plan.substeps, dtype=int))
     return path
 
 
@@ -343,6 +385,9 @@ def verify_saved(path: str | Path, task=EXACT_TASK) -> tuple[Verification, float
     return verification, float(np.min(mp.hole_values(plan["x"][:, :4])))
 
 
+_SCHEME = {"rk4": "RK4", "radau": "Radau IIA order 5"}
+
+
 def plot_exact_plan(plan: PolishedPlan, problem: MonopedProblem, path: str | Path) -> Path:
     """The figure of a monoped plan: the foot's, knee's and hip's paths over the holes, the
     joint angles and the torques (dotted: lift-offs)."""
@@ -365,8 +410,9 @@ def plot_exact_plan(plan: PolishedPlan, problem: MonopedProblem, path: str | Pat
     where.plot(knee[:, 0], knee[:, 1], lw=0.8, label="knee")
     where.axhline(0, color="k", lw=0.8)
     where.set(xlabel="x [m]", ylabel="z [m]", aspect="equal",
-              title=f"TF-9 monoped, exact re-solve ({task.hole_form} holes of half width "
-                    f"{task.hole_half_width:g} m): {plan.status}")
+              title=f"TF-9 monoped, exact re-solve ({_SCHEME[plan.integrator]}; "
+                    f"{task.hole_form} holes of half width {task.hole_half_width:g} m): "
+                    f"{plan.status}")
     where.legend(loc="upper right", fontsize=8)
     angles.plot(t, x[:, 2], label="hip angle")
     angles.plot(t, x[:, 3], label="knee angle")

@@ -104,7 +104,9 @@ def _monoped(task: str, out: Path, verbose: bool) -> PlanOutcome:
               "phases": [dataclasses.asdict(p) for p in chain.plan.phases],
               "steps": [dataclasses.asdict(step) for step in chain.steps],
               "method": "exact re-solve along a contact sequence (tfcontact.ocp.polish): "
-                        "RK4 multiple shooting on the fixed control grid"}
+                        + ("Radau IIA order 5 collocation" if chain.plan.integrator == "radau"
+                           else "RK4 multiple shooting") + " on the fixed control grid",
+              "steps_per_interval": list(chain.plan.substeps)}
     trajectory = trajectory_from_polished(chain.plan, mp.system.cls, mp.robot.spec,
                                           mp.scene(), solver=solver)
     return PlanOutcome(trajectory, mp.robot, chain.status, chain.success, chain.summary(),
@@ -122,8 +124,9 @@ PLANS: dict[str, Plan] = {
     "monoped": Plan(
         name="monoped",
         summary="Capler monoped (robots/monoped.urdf), TF-9: hop over three holes to x = 3 "
-                "(35-55 min; --task reduced: one hole, to x = 1, 6 min): time-freezing "
-                "homotopy, then the exact re-solve along its contact sequence",
+                "(about an hour; --task reduced: one hole, to x = 1, 6 min): "
+                "time-freezing homotopy, then the exact re-solve along its contact "
+                "sequence",
         build=None,
         tasks=("full", "reduced"),
         solve=_monoped,
