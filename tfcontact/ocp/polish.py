@@ -230,7 +230,8 @@ class PolishedPlan:
 
     Attributes:
         phases: the contact sequence with the polished switch times.
-        t, x: the RK4 nodes' physical times [s] and states (q, v), (n_nodes, 2 n_q);
+        t, x: the nodes' physical times [s] and states (q, v), (n_nodes, 2 n_q) (RK4: the
+            shooting nodes; Radau: every stage point);
             a touchdown has two nodes at its time (before and after the impact).
         u: physical controls per interval, (N, n_u).
         boundary_states: (q, v) at the control-interval boundaries, (N + 1, 2 n_q).
@@ -278,16 +279,18 @@ class PolishedPlan:
         return "\n".join([
             (f"polish: {self.status} (IPOPT {self.ipopt_status}, {self.iterations} "
              f"iterations, {self.solve_time:.1f} s; {steps})"),
-            f"polish: {self.integrator}, {_mesh(self.substeps)} per control interval",
+            f"polish: {self.integrator}, {_mesh(self.substeps, self.integrator)} per control "
+            "interval",
             f"polish: objective {self.cost:.6g}; phases {switches}",
             f"polish: {self.verification.summary()}",
         ])
 
 
-def _mesh(substeps: tuple[int, ...]) -> str:
+def _mesh(substeps: tuple[int, ...], integrator: str) -> str:
+    unit = "elements" if integrator == "radau" else "nodes"
     if len(set(substeps)) <= 1:
-        return f"{substeps[0] if substeps else '?'} steps"
-    return "steps " + " ".join(str(n) for n in substeps)
+        return f"{substeps[0] if substeps else '?'} {unit}"
+    return f"{unit} " + " ".join(str(n) for n in substeps)
 
 
 def contact_phases(result: ContactResult, options: PolishOptions | None = None
@@ -792,7 +795,7 @@ def node_samples(plan: PolishedPlan, cls, baumgarte: float = PolishOptions.baumg
     normal velocity, the contact force (lambda_n, lambda_t) [N] (stick: the stick force,
     slip: lambda_t = -s mu lambda_n, flight: 0) and the impulse (Lambda_n, Lambda_t) [N s]
     of a touchdown at its post-impact node (0 elsewhere). A node's mode and control are
-    those of the RK4 segment that ends at it (the first node: the first phase's and
+    those of the segment that ends at it (the first node: the first phase's and
     control's); a post-impact node is in the stick phase that starts there."""
     dyn = _Dynamics(cls, baumgarte)
     t, x, u = plan.t, plan.x, plan.u

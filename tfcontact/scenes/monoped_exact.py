@@ -347,7 +347,7 @@ def saved_phases(plan: Any) -> tuple[Phase, ...]:
 
 def contact_values(plan: Any, dyn: _Dynamics, horizon: float) -> tuple[np.ndarray, np.ndarray]:
     """(stick forces (n, 2) [N], touchdown impulses (m, 2) [N s]) of a saved plan: the
-    stick force at both ends of every RK4 segment inside a stick phase, with that
+    stick force at both ends of every segment between two nodes inside a stick phase, with that
     segment's control (so at a control jump with both controls, as the re-solve's rows
     hold them), and the impulse of each touchdown (two nodes at one time)."""
     t, x, u = plan["t"], plan["x"], plan["u"]
@@ -385,7 +385,7 @@ def verify_saved(path: str | Path, task=EXACT_TASK) -> tuple[Verification, float
     return verification, float(np.min(mp.hole_values(plan["x"][:, :4])))
 
 
-_SCHEME = {"rk4": "RK4", "radau": "Radau IIA order 5"}
+_SCHEME = {"rk4": "RK4", "radau": "Radau IIA"}
 
 
 def plot_exact_plan(plan: PolishedPlan, problem: MonopedProblem, path: str | Path) -> Path:

@@ -104,7 +104,7 @@ def _monoped(task: str, out: Path, verbose: bool) -> PlanOutcome:
               "phases": [dataclasses.asdict(p) for p in chain.plan.phases],
               "steps": [dataclasses.asdict(step) for step in chain.steps],
               "method": "exact re-solve along a contact sequence (tfcontact.ocp.polish): "
-                        + ("Radau IIA order 5 collocation" if chain.plan.integrator == "radau"
+                        + ("Radau IIA collocation" if chain.plan.integrator == "radau"
                            else "RK4 multiple shooting") + " on the fixed control grid",
               "steps_per_interval": list(chain.plan.substeps)}
     trajectory = trajectory_from_polished(chain.plan, mp.system.cls, mp.robot.spec,

@@ -347,7 +347,7 @@ def trajectory_from_polished(
     """The `Trajectory` of a plan re-solved with the exact hybrid dynamics
     (`tfcontact.ocp.polish.PolishedPlan`, one frictional planar contact on flat ground).
 
-    Its samples are the plan's RK4 nodes. tau is the physical time plus `IMPACT_TAU` per
+    Its samples are the plan's nodes. tau is the physical time plus `IMPACT_TAU` per
     touchdown passed, so each touchdown is a frozen piece from its pre- to its post-impact
     node carrying the impulse; s = 1. Forces in the world frame: lambda_n along the
     ground's normal, lambda_t along x. `solver` is stored as the sidecar's solver entry.
