@@ -132,15 +132,14 @@ def test_plan_monoped_writes_plan_trajectory_and_replay(monkeypatch, tmp_path, c
     its trajectory with the three touchdowns as frozen pieces carrying the impulses,
     the figures and the replay; the chain itself is replaced by the saved plan."""
     saved = np.load(SAVED_PLAN)
-    starts = [*saved["phase_starts"], 2.5]
-    phases = tuple(Phase(str(m), float(a), float(b))
-                   for m, a, b in zip(saved["phase_modes"], starts[:-1], starts[1:], strict=True))
+    phases = chain_module.saved_phases(saved)
     verification, holes = verify_saved(SAVED_PLAN)
     plan = PolishedPlan(
         phases=phases, t=saved["t"], x=saved["x"], u=saved["u"],
         boundary_states=saved["boundary"], contact_forces=np.zeros((0, 2)),
         impact_impulses=np.zeros((0, 2)), cost=236.9, ipopt_status="Solve_Succeeded",
-        iterations=1, solve_time=1.0, verification=verification)
+        iterations=1, solve_time=1.0, verification=verification, integrator="radau",
+        substeps=tuple(int(n) for n in saved["substeps"]))
     mp = monoped_problem(EXACT_TASK)
     fake = ExactPlan(plan, mp, (), holes, 1.0)
     monkeypatch.setattr(chain_module, "full_exact_plan", lambda verbose: fake)
@@ -161,7 +160,9 @@ def test_plan_monoped_writes_plan_trajectory_and_replay(monkeypatch, tmp_path, c
     assert np.all(traj.tau[landing] > traj.tau[landing - 1])
     assert np.all(traj.impulse[landing, 0, 2] > 0)  # pushing up
     assert traj.solver["method"].startswith("exact re-solve")
-    # every RK4 node is a sample
+    assert traj.solver["method"].endswith("Radau IIA collocation on the fixed control grid")
+    assert traj.solver["steps_per_interval"] == list(saved["substeps"])
+    # every node is a sample
     assert traj.q.shape[0] == saved["t"].size
 
 
