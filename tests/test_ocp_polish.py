@@ -153,9 +153,9 @@ def test_phase_changes_the_re_solve_does_not_model_are_named():
                                            "through slip"):
         polish.polish_contact(None, (polish.Phase("stick", 0, 0.5),
                                      polish.Phase("slip-", 0.5, 0.6),
-                                     polish.Phase("stick", 0.6, 1)))
+                                     polish.Phase("stick", 0.6, 1)), guess=None)
     with pytest.raises(InvalidInput, match="must start in stick"):
-        polish.polish_contact(None, (polish.Phase(polish.FLIGHT, 0, 1),))
+        polish.polish_contact(None, (polish.Phase(polish.FLIGHT, 0, 1),), guess=None)
     with pytest.raises(InvalidInput, match="cone_margins"):
         polish.PolishOptions(cone_margins=(1.0, 1.2))
     with pytest.raises(InvalidInput, match="'rk4' or 'radau'"):
@@ -166,13 +166,12 @@ def test_phase_changes_the_re_solve_does_not_model_are_named():
 
 def test_a_lift_off_straight_from_stick_must_be_at_a_control_jump():
     """Inside an interval it would need lambda_n = lambda_t = 0 at one switch time."""
-    from types import SimpleNamespace
-
     from tfcontact.scenes.monoped import monoped_problem
-    shim = SimpleNamespace(problem=monoped_problem("reduced").problem)  # T / N = 0.1 s
+
+    problem = monoped_problem("reduced").problem  # T / N = 0.1 s
     with pytest.raises(InvalidInput, match=r"at 0\.55 s\) must be at a control jump"):
-        polish.polish_contact(shim, (polish.Phase("stick", 0, 0.55),
-                                     polish.Phase("flight", 0.55, 1)))
+        polish.polish_contact(problem, (polish.Phase("stick", 0, 0.55),
+                                        polish.Phase("flight", 0.55, 1)), guess=None)
 
 
 def test_free_normal_acceleration_is_gravity_plus_push_for_a_particle():
@@ -225,6 +224,28 @@ def test_the_saved_full_plan_fails_with_one_control_moved(saved_full_plan, tmp_p
     assert verification.local_defects[4] > 5e-2
 
 
+@pytest.mark.parametrize("change, monotone", [("end", True), ("order", False)])
+def test_the_saved_full_plan_fails_with_node_times_off_the_horizon(saved_full_plan, tmp_path,
+                                                                   change, monotone):
+    """The plan's node times are its clock: they must not decrease and must end at T.
+    Checked on the saved plan (end 2.5 s, monotone), then with its last node 1 ms short
+    and with two nodes swapped in time."""
+    verification, _ = verify_saved(SAVED_PLAN)
+    assert verification.clock_monotone and verification.clock_end_error < 1e-12
+    moved = dict(saved_full_plan)
+    t = moved["t"].copy()
+    if change == "end":
+        t[-1] -= 1e-3
+    else:
+        t[10], t[11] = t[11], t[10]
+    moved["t"] = t
+    np.savez(tmp_path / "moved.npz", **moved)
+    verification, _ = verify_saved(tmp_path / "moved.npz")
+    assert verification.clock_monotone is monotone and not verification.passed
+    if change == "end":
+        assert verification.clock_end_error == pytest.approx(1e-3)
+
+
 def test_the_mesh_is_refined_where_the_local_defects_exceed_their_share():
     """Tolerance 0.05 over 4 intervals: a share of 0.0125 each; the second interval and the
     one the reference could not replay (nan) get twice the elements."""
@@ -246,14 +267,12 @@ def test_tf9s_grid_re_solves_the_rk4_plan_but_fails_the_exact_replay():
     swings (joint velocities near 100 rad/s before each touchdown) are too fast for
     elements of 42 ms, and the exact replay from the plan's own states parts from it by
     more than 1 within one interval. Measured: 32 iterations, largest defect 14."""
-    from types import SimpleNamespace
-
     from tfcontact.scenes.monoped import monoped_problem
     from tfcontact.scenes.monoped_exact import EXACT_TASK, saved_phases
 
     plan = np.load(RK4_PLAN)
     polished = polish.polish_contact(
-        SimpleNamespace(problem=monoped_problem(EXACT_TASK).problem), saved_phases(plan),
+        monoped_problem(EXACT_TASK).problem, saved_phases(plan),
         polish.PolishOptions(substeps=3, integrator="radau", painleve_margin=0.0),
         guess=(plan["t"], plan["x"], plan["u"]), verbose=False)
     assert polished.solved
@@ -266,15 +285,12 @@ def test_tf9s_grid_re_solves_the_rk4_plan_but_fails_the_exact_replay():
 def test_a_capped_re_solve_reports_progress_and_fails_honestly(monkeypatch, capsys):
     """A long re-solve prints a line every `PROGRESS_EVERY` iterations; stopped at the
     iteration cap, its plan is nlp_failed (not a plan marked successful)."""
-    from types import SimpleNamespace
-
     from tfcontact.scenes.monoped import monoped_problem
 
     monkeypatch.setattr(polish, "PROGRESS_EVERY", 5)
     problem = monoped_problem("reduced").problem  # to x = 1: no plan by standing still
     x0 = np.array([0, 0.4, 0, 0, 0, 0, 0, 0.0])
-    plan = polish.polish_contact(SimpleNamespace(problem=problem),
-                                 (polish.Phase("stick", 0, 1),),
+    plan = polish.polish_contact(problem, (polish.Phase("stick", 0, 1),),
                                  polish.PolishOptions(substeps=2, max_iter=12),
                                  guess=(np.array([0.0, 1.0]), np.array([x0, x0]),
                                         np.zeros((10, 2))))

@@ -65,6 +65,8 @@ from tfcontact.ocp.verify import Verification, friction_cone_violation
 STICK, FLIGHT = "stick", "flight"
 PROGRESS_EVERY = 250
 """A verbose re-solve prints a line every this many IPOPT iterations."""
+CLOCK_TOLERANCE = 1e-9
+"""A plan's last node may differ from the horizon by this fraction of it (round-off)."""
 TRANSITIONS = {(STICK, "slip+"), (STICK, "slip-"), ("slip+", FLIGHT), ("slip-", FLIGHT),
                (FLIGHT, STICK), (STICK, FLIGHT)}
 """The phase changes the re-solve models. Inside a control interval a foot lifts off
@@ -425,21 +427,32 @@ def _interpolate(t: np.ndarray, x: np.ndarray, at: float) -> np.ndarray:
     return (1 - w) * x[i] + w * x[i + 1]
 
 
-def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
-                   options: PolishOptions | None = None, *, verbose: bool = True,
-                   guess: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-                   ) -> PolishedPlan:
-    """Re-solve a time-freezing plan's OCP along its contact sequence with the exact
-    hybrid dynamics (module docstring), warm started from the plan, and verify it.
+def guess_from_result(result: ContactResult) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, x, u) of a time-freezing plan as a guess of `polish_contact`: its physical
+    trajectory's times and states x = (q, v) (frozen pieces dropped) and its controls."""
+    system = result.problem.system
+    phys = result.physical
+    columns = (list(range(system.q_index.start, system.q_index.stop))
+               + list(range(system.v_index.start, system.v_index.stop)))
+    return phys.t, phys.y[:, columns], result.u
+
+
+def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
+                   options: PolishOptions | None = None, *,
+                   guess: ContactResult | tuple[np.ndarray, np.ndarray, np.ndarray],
+                   verbose: bool = True) -> PolishedPlan:
+    """Re-solve a contact OCP along a contact sequence with the exact hybrid dynamics
+    (module docstring), warm started from a guess, and verify the plan.
 
     Args:
-        result: a `ContactResult` (converged or not: its states and controls are the
-            guess unless `guess` is given).
+        problem: the `ContactProblem` (its time-freezing system supplies the hybrid
+            dynamics; its bounds, path and terminal constraints and cost are kept).
         phases: the contact sequence, starting in stick, its changes in `TRANSITIONS`.
         options: `PolishOptions`.
+        guess: a time-freezing plan (`ContactResult`, converged or not), or (t, x, u) of
+            an earlier polished plan: node times [s], states (n, 2 n_q), controls (N, n_u).
         verbose: print one line per NLP (and the most violated rows of a failed one) and
             the summary.
-        guess: (t, x, u) of an earlier polished plan to start from instead.
 
     Returns:
         A `PolishedPlan`; `success` only if IPOPT solved the last NLP and the plan passed
@@ -454,7 +467,6 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
                                f"{after.start:.4g} s: the re-solve models {sorted(TRANSITIONS)}"
                                " (a foot lifts off through slip)")
     options = options or PolishOptions()
-    problem: ContactProblem = result.problem
     system = problem.system
     cls = system.cls
     _check_system(cls)
@@ -474,13 +486,8 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
     substeps = options.substeps_per_interval(n_int)
     start = time.perf_counter()
 
-    if guess is not None:  # an earlier polished plan: (t, x, u)
-        guess_t, guess_x, guess_u = guess
-    else:  # the plan's physical trajectory
-        phys = result.physical
-        guess_x = phys.y[:, list(range(system.q_index.start, system.q_index.stop))
-                         + list(range(system.v_index.start, system.v_index.stop))]
-        guess_t, guess_u = phys.t, result.u
+    guess_t, guess_x, guess_u = (guess if isinstance(guess, tuple)
+                                 else guess_from_result(guess))
     y_sym, u_sym = system.y, system.u
     n_y = y_sym.numel()
 
@@ -738,8 +745,8 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
     polished_phases = tuple(Phase(p.mode, s, e)
                             for p, s, e in zip(phases, starts, ends, strict=True))
     solve_time = time.perf_counter() - start
-    verification = _verify(cls, problem, clocks, boundary_x, u_value, node_x, dyn, forces,
-                           impact_values, options)
+    verification = _verify(cls, problem, clocks, boundary_x, u_value, times, node_x, dyn,
+                           forces, impact_values, options)
     plan = PolishedPlan(
         phases=polished_phases, t=times, x=node_x, u=u_value, boundary_states=boundary_x,
         contact_forces=forces, impact_impulses=impact_values, cost=float(sol.value(opti.f)),
@@ -752,9 +759,11 @@ def polish_contact(result: ContactResult, phases: tuple[Phase, ...],
 
 
 def _verify(cls, problem: ContactProblem, clocks: np.ndarray, boundary_x: np.ndarray, u: np.ndarray,
-            node_x: np.ndarray, dyn: _Dynamics, forces: np.ndarray, impulses: np.ndarray,
-            options: PolishOptions) -> Verification:
-    """The replay checks of `verify_plan` on the polished plan, plus its gaps and cone."""
+            node_t: np.ndarray, node_x: np.ndarray, dyn: _Dynamics, forces: np.ndarray,
+            impulses: np.ndarray, options: PolishOptions) -> Verification:
+    """The replay checks of `verify_plan` on the polished plan, plus its gaps, cone and
+    node times (non-decreasing, the last at the horizon: there is no clock state, the
+    plan runs in physical time)."""
     n_int, horizon = problem.n_intervals, problem.horizon
     plan = ReplayedPlan(cls=cls, x0=np.concatenate([problem.q0, problem.v0]),
                         clocks=clocks, states=boundary_x,
@@ -777,11 +786,15 @@ def _verify(cls, problem: ContactProblem, clocks: np.ndarray, boundary_x: np.nda
     notes.append(f"cone checked on {len(forces)} stick nodes (forces, N) and {len(impulses)} "
                  f"touchdown impulses (N s); tolerance {options.cone_tolerance:g} x the "
                  f"largest normal value {largest:.3g}")
+    node_t = np.asarray(node_t, dtype=float)
+    monotone = bool(np.all(np.diff(node_t) >= 0.0))
+    end_error = abs(float(node_t[-1]) - horizon)
     passed = (end_ok and min_gap >= -options.gap_tolerance
-              and cone <= options.cone_tolerance * max(largest, 1e-12))
+              and cone <= options.cone_tolerance * max(largest, 1e-12)
+              and monotone and end_error <= CLOCK_TOLERANCE * horizon)
     return Verification(
         passed=bool(passed), method=method, end_state_deviation=deviation, min_gap=min_gap,
-        friction_cone_violation=cone, clock_monotone=True, clock_end_error=0.0,
+        friction_cone_violation=cone, clock_monotone=monotone, clock_end_error=end_error,
         tolerances={"end_state": options.end_state_tolerance, "gap": options.gap_tolerance,
                     "cone": options.cone_tolerance},
         notes=tuple(notes), dissipation_violation=float("nan"), local_defects=defects,

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import dataclasses
 import time
-import types
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -194,14 +193,14 @@ def reduced_exact_plan(verbose: bool = True) -> ExactPlan:
               ("exact re-solve, 16 nodes", mp, PolishOptions(substeps=16, painleve_margin=0.0)),
               ("exact re-solve, 16 nodes x 2 RK4 steps", mp,
                PolishOptions(substeps=16, steps_per_node=2, painleve_margin=0.0))]
-    return _chain(levels, relaxed, phases, None, steps, start, verbose)
+    return _chain(levels, phases, relaxed, steps, start, verbose)
 
 
-def _chain(levels, source, phases, guess, steps: list[ChainStep], start: float,
+def _chain(levels, phases, guess, steps: list[ChainStep], start: float,
            verbose: bool) -> ExactPlan:
     """Run the re-solves `levels` [(name, MonopedProblem, PolishOptions or a function
     (last plan, problem) -> PolishOptions)] in order, each from the last (the first from
-    `source`, a relaxed plan, or from `guess`); a
+    `guess`: a relaxed plan or (t, x, u)); a
     step at the iteration cap hands its iterate on, the last one is solved once more from
     its own iterate; other failures stop the chain (module docstring)."""
     plan = None
@@ -214,9 +213,8 @@ def _chain(levels, source, phases, guess, steps: list[ChainStep], start: float,
             if verbose:
                 print(f"monoped: {label}", flush=True)
             begin = time.perf_counter()
-            plan = polish_contact(types.SimpleNamespace(problem=problem.problem)
-                                  if source is None else source, phases, options,
-                                  verbose=verbose, guess=guess)
+            plan = polish_contact(problem.problem, phases, options, guess=guess,
+                                  verbose=verbose)
             steps.append(_step(label, plan, time.perf_counter() - begin))
             guess, phases = (plan.t, plan.x, plan.u), plan.phases
             if plan.ipopt_status != CAPPED:
@@ -294,7 +292,7 @@ def full_exact_plan(verbose: bool = True) -> ExactPlan:
               ("full task, bump holes, 16 nodes x 2 RK4 steps", bumps, options[16]),
               ("full task, TF-9's ellipses, 16 nodes x 2 RK4 steps", ellipses, options[16]),
               *radau_levels(ellipses)]
-    return _chain(levels, None, phases, guess, steps, start, verbose)
+    return _chain(levels, phases, guess, steps, start, verbose)
 
 
 def radau_options(substeps: int | tuple[int, ...] = RADAU_ELEMENTS) -> PolishOptions:
@@ -381,7 +379,7 @@ def verify_saved(path: str | Path, task=EXACT_TASK) -> tuple[Verification, float
     clocks = np.array([k * task.horizon / n for k in range(n + 1)])
     forces, impulses = contact_values(plan, dyn, task.horizon)
     verification = _verify(mp.system.cls, mp.problem, clocks, plan["boundary"], plan["u"],
-                           plan["x"], dyn, forces, impulses, PolishOptions())
+                           plan["t"], plan["x"], dyn, forces, impulses, PolishOptions())
     return verification, float(np.min(mp.hole_values(plan["x"][:, :4])))
 
 
