@@ -24,8 +24,11 @@ from __future__ import annotations
 import os
 
 # One BLAS thread for both tools, set before numpy loads OpenBLAS: a second thread doubled
-# nosnoc_py's CPU time (its "NLP solves" column) without shortening its wall time.
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# nosnoc_py's CPU time (its "NLP solves" column) without shortening its wall time. Only
+# when run as a script: a test that imports this module must not change the BLAS threads
+# of every solve after it.
+if __name__ == "__main__":
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import dataclasses  # noqa: E402
@@ -201,7 +204,8 @@ def main() -> None:
             print("nosnoc is not installed (pip install -e '.[bench]'): skipped")
     lines = [
         f"# Hopper OCP benchmark ({datetime.date.today()}, {platform.machine()}, "
-        f"2 cores shared, OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']})", "",
+        "2 cores shared, OPENBLAS_NUM_THREADS="
+        f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')})", "",
         "Command: `python scripts/bench_hopper.py`", "",
         "| method | wall [s] | NLP build [s] | NLP solves [s] | of which function "
         "evaluations [s] | NLPs | IPOPT iterations | ms per iteration | compl. residual | "
