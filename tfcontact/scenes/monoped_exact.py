@@ -31,7 +31,9 @@ failed status. Only the last step's verification decides.
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
+import gc
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -196,6 +198,17 @@ def reduced_exact_plan(verbose: bool = True) -> ExactPlan:
     return _chain(levels, phases, relaxed, steps, start, verbose)
 
 
+def _return_memory() -> None:
+    """Collect garbage and hand freed heap pages back to the system (glibc's malloc_trim).
+    Without it the process kept each re-solve's freed NLP graph: the reduced chain held
+    1.5 GB after its second step (0.17 GB with it), the full chain peaked at 21 GB."""
+    gc.collect()
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc: nothing to trim
+        pass
+
+
 def _chain(levels, phases, guess, steps: list[ChainStep], start: float,
            verbose: bool) -> ExactPlan:
     """Run the re-solves `levels` [(name, MonopedProblem, PolishOptions or a function
@@ -215,6 +228,7 @@ def _chain(levels, phases, guess, steps: list[ChainStep], start: float,
             begin = time.perf_counter()
             plan = polish_contact(problem.problem, phases, options, guess=guess,
                                   verbose=verbose)
+            _return_memory()
             steps.append(_step(label, plan, time.perf_counter() - begin))
             guess, phases = (plan.t, plan.x, plan.u), plan.phases
             if plan.ipopt_status != CAPPED:
