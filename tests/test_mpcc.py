@@ -49,6 +49,17 @@ def test_each_relaxation_reaches_the_mpcc_solution(relaxation):
         sum(s.evaluation_seconds for s in result.history))
 
 
+def test_spral_reaches_the_same_mpcc_solution_as_mumps():
+    """IPOPT's other linear solver in the wheel: the same solution, IPOPT told which."""
+    results = {name: solve(corner_mpcc(), homotopy=Homotopy(tolerance=1e-9),
+                           nlp=Ipopt(linear_solver=name)) for name in ("mumps", "spral")}
+    assert all(r.status is MpccStatus.CONVERGED for r in results.values())
+    np.testing.assert_allclose(results["spral"].value("x"), results["mumps"].value("x"),
+                               atol=1e-7)
+    assert Ipopt(linear_solver="spral").casadi_options()["ipopt"]["linear_solver"] == "spral"
+    assert "linear_solver" not in Ipopt().casadi_options()["ipopt"]  # IPOPT's default
+
+
 def test_scholtes_needs_sigma_below_tolerance():
     # Scholtes keeps the products at sigma while both factors want to be positive,
     # so it stops only once sigma <= tolerance: ceil(log(1e-6)/log(0.1)) + 1 NLPs.
@@ -124,6 +135,11 @@ def test_bad_input_is_named():
         Ipopt(tol=1e-8, intermediate_tol=1e-9)
     with pytest.raises(InvalidInput, match="`intermediate_tol`"):
         Ipopt(intermediate_tol=float("nan"))
+    with pytest.raises(InvalidInput, match=r"`linear_solver` must be one of 'mumps', "
+                                           r"'spral' .*got 'ma57'"):
+        Ipopt(linear_solver="ma57")
+    with pytest.raises(InvalidInput, match="give `linear_solver` as a field of Ipopt"):
+        Ipopt(options={"linear_solver": "spral"})
     w = ca.SX.sym("w", 2)
     with pytest.raises(InvalidInput, match="`lbw` has 1 entries, expected 2"):
         Mpcc(w=w, f=w[0], g=ca.SX(0, 1), lbg=[], ubg=[], lbw=[0], ubw=[1, 1], w0=[0, 0],

@@ -3,6 +3,7 @@
 from tfcontact.mpcc.problem import Mpcc
 from tfcontact.mpcc.relaxation import RELAXATIONS, L1Penalty, LinfPenalty, Relaxation, Scholtes
 from tfcontact.mpcc.solver import (
+    LINEAR_SOLVERS,
     Homotopy,
     HomotopyStep,
     Ipopt,
@@ -13,6 +14,7 @@ from tfcontact.mpcc.solver import (
 )
 
 __all__ = [
+    "LINEAR_SOLVERS",
     "RELAXATIONS",
     "Homotopy",
     "HomotopyStep",

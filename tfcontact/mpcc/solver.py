@@ -77,9 +77,13 @@ class Homotopy:
         return math.ceil(math.log(self.tolerance / self.sigma_0) / math.log(self.kappa)) + 1
 
 
+LINEAR_SOLVERS = ("mumps", "spral")
+"""IPOPT's linear solvers in CasADi's wheel (HSL's ma27, ma57, ... are not in it)."""
+
+
 @dataclass(frozen=True)
 class Ipopt:
-    """IPOPT settings (MUMPS linear solver).
+    """IPOPT settings.
 
     Args:
         tol: IPOPT's convergence tolerance.
@@ -105,6 +109,10 @@ class Ipopt:
             the hopper tasks use it.
         threads: threads that evaluate the element derivatives (CasADi's thread map);
             the values do not depend on it.
+        linear_solver: IPOPT's sparse symmetric indefinite solver, one of
+            `LINEAR_SOLVERS`: "mumps" (default) or "spral" (STFC's SSIDS, the open
+            successor of HSL's MA97; about 5x slower per iteration on the monoped, with
+            another homotopy path: benchmarks/monoped_settings.md, fifth session).
     """
 
     tol: float = 1e-10
@@ -114,13 +122,18 @@ class Ipopt:
     intermediate_tol: float | None = None
     element_derivatives: bool = False
     threads: int = 1
+    linear_solver: str = "mumps"
 
     def __post_init__(self) -> None:
         if not self.tol > 0:
             raise InvalidInput(f"`tol` must be positive, got {self.tol}")
         if self.max_iter < 1:
             raise InvalidInput(f"`max_iter` must be at least 1, got {self.max_iter}")
-        for key in ("tol", "max_iter", "print_level"):
+        if self.linear_solver not in LINEAR_SOLVERS:
+            raise InvalidInput(
+                f"`linear_solver` must be one of {', '.join(map(repr, LINEAR_SOLVERS))} (the "
+                f"ones in CasADi's IPOPT build), got {self.linear_solver!r}")
+        for key in ("tol", "max_iter", "print_level", "linear_solver"):
             if key in self.options:
                 raise InvalidInput(f"give `{key}` as a field of Ipopt, not in `options`")
         if self.intermediate_tol is not None and not (
@@ -144,6 +157,8 @@ class Ipopt:
             "bound_relax_factor": 0.0,
             "acceptable_tol": 1e-6,
         }
+        if self.linear_solver != "mumps":  # IPOPT's default: left unset
+            ipopt["linear_solver"] = self.linear_solver
         ipopt.update(self.options)
         if intermediate:
             if self.intermediate_tol is None:
