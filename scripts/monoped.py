@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from tfcontact.fesd import RadauIIA
-from tfcontact.mpcc import RELAXATIONS, Homotopy, Ipopt
+from tfcontact.mpcc import LINEAR_SOLVERS, RELAXATIONS, Homotopy, Ipopt
 from tfcontact.ocp.contact import ContactResult, ContactSolverOptions, solve_contact
 from tfcontact.robot import RobotSpec
 from tfcontact.scenes.monoped import (
@@ -56,10 +56,24 @@ def solver_options(args: argparse.Namespace) -> ContactSolverOptions:
     return ContactSolverOptions(
         scheme=RadauIIA(args.stages), n_finite_elements=args.n_fe, relaxation=relaxation,
         homotopy=Homotopy(sigma_0=args.sigma0, kappa=args.kappa, tolerance=args.comp_tol,
-                          max_nlps=args.max_nlps),
-        nlp=Ipopt(tol=1e-8, max_iter=args.max_iter, options=ipopt),
+                          max_nlps=args.max_nlps, max_refinements=args.refinements),
+        nlp=Ipopt(tol=1e-8, max_iter=args.max_iter, options=ipopt,
+                  intermediate_tol=args.stepping_stones,
+                  element_derivatives=args.element_derivatives,
+                  linear_solver=args.linear_solver),
         verify_refinement=args.verify_refinement,
     )
+
+
+def start_to_goal_guess(task) -> np.ndarray:
+    """(q, v) at the interval boundaries with q_x and v_x linear from start to goal, the
+    rest at the start: an interpolation, not a contact schedule."""
+    n = task.n_intervals
+    guess = np.zeros((n + 1, 8))
+    guess[:, :4] = task.q0
+    guess[:, 0] = np.linspace(task.q0[0], task.q_goal[0], n + 1)
+    guess[:, 4] = (task.q_goal[0] - task.q0[0]) / task.horizon
+    return guess
 
 
 def robot_spec() -> RobotSpec:
@@ -173,8 +187,11 @@ def bench_markdown(mp: MonopedProblem, result: ContactResult, checks: dict, args
         "",
         "Task: T = 2.5 s, N = 20, q0 = (0, 0.4, 0, 0), q(T) = (3, 0.4, 0, 0), cost int u^T u, "
         "|u| <= 60, holes ((p_x - x_c)/0.5)^2 + (p_z/0.1)^2 >= 1 at x_c = 0.5, 1.5, 2.5, "
-        "mu = 0.8, a_n = 200; start-everywhere initial guess (zero controls, y0 at every "
-        "node). Robot: `robots/monoped.urdf`, `planar_xz` base, foot sphere r = 0.028 on "
+        "mu = 0.8, a_n = 200; "
+        + ("start-everywhere initial guess (zero controls, y0 at every node). "
+           if args.guess == "start" else "initial guess: zero controls, q_x and v_x linear "
+           "from start to goal, the rest at y0. ")
+        + "Robot: `robots/monoped.urdf`, `planar_xz` base, foot sphere r = 0.028 on "
         "ground at -r (TF-9's point-foot gap).",
         "",
         f"Solver: {options_text(args)}.",
@@ -215,7 +232,10 @@ def options_text(args: argparse.Namespace) -> str:
             f"{args.verify_refinement}; "
             f"FESD Radau IIA {args.stages} stages, N_FE = {args.n_fe}, {args.relaxation}, "
             f"sigma_0 = {args.sigma0}, kappa = {args.kappa}, comp. tol {args.comp_tol:g}, "
-            f"IPOPT (MUMPS) tol 1e-8, mu_strategy {args.mu_strategy}")
+            f"IPOPT ({args.linear_solver.upper()}) tol 1e-8, mu_strategy {args.mu_strategy}"
+            + (f", stepping stones to {args.stepping_stones:g}" if args.stepping_stones else "")
+            + (f", {args.refinements} step refinements" if args.refinements else "")
+            + (", start-to-goal guess" if args.guess == "linear" else ""))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -234,6 +254,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--mu-strategy", choices=("adaptive", "monotone"),
                         default=plan.nlp.options["mu_strategy"])
     parser.add_argument("--max-iter", type=int, default=plan.nlp.max_iter)
+    parser.add_argument("--linear-solver", choices=LINEAR_SOLVERS,
+                        default=plan.nlp.linear_solver, help="IPOPT's linear solver")
+    parser.add_argument("--stepping-stones", type=float, default=plan.nlp.intermediate_tol,
+                        metavar="TOL", help="solve the NLPs above the final sigma to TOL "
+                                            "(Ipopt.intermediate_tol)")
+    parser.add_argument("--refinements", type=int, default=plan.homotopy.max_refinements,
+                        help="Homotopy.max_refinements")
+    parser.add_argument("--element-derivatives", action="store_true",
+                        default=plan.nlp.element_derivatives,
+                        help="Ipopt.element_derivatives")
+    parser.add_argument("--guess", choices=("start", "linear"), default="start",
+                        help="start: the start state everywhere (TF-9); linear: q_x and v_x "
+                             "from start to goal (`start_to_goal_guess`)")
     parser.add_argument("--hole-form", choices=("ellipse", "bump"), default=FULL_TASK.hole_form,
                         help="hole constraint (see MonopedTask.hole_form)")
     parser.add_argument("--s-max", type=float, default=FULL_TASK.speed_of_time[1],
@@ -268,6 +301,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.stages is None:
         args.stages = monoped_options(name).scheme.stages
     mp = monoped_problem(task)
+    if args.guess == "linear":
+        mp = dataclasses.replace(mp, problem=dataclasses.replace(
+            mp.problem, guess=start_to_goal_guess(task)))
     options = solver_options(args)
     if args.profile:
         print(json.dumps(profile(mp, options, args.profile), indent=1))

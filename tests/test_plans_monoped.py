@@ -70,6 +70,30 @@ def test_script_defaults_are_the_cli_plan(monkeypatch, load_script):
         assert str(seen["problem"].path.expression) == str(plan.path.expression)
 
 
+def test_script_flags_reach_the_solver_and_the_guess(monkeypatch, load_script):
+    """The settings of benchmarks/monoped_settings.md's fifth session as flags: SPRAL,
+    stepping stones, refinements, element derivatives and the start-to-goal guess."""
+    script = load_script("monoped")
+    seen = {}
+
+    def stop(problem, options, verbose):
+        seen.update(problem=problem, options=options)
+        raise SystemExit
+
+    monkeypatch.setattr(script, "solve_contact", stop)
+    with pytest.raises(SystemExit):
+        script.main(["--stages", "2", "--linear-solver", "spral", "--stepping-stones", "0.1",
+                     "--refinements", "3", "--element-derivatives", "--guess", "linear"])
+    nlp, homotopy = seen["options"].nlp, seen["options"].homotopy
+    assert nlp.linear_solver == "spral" and nlp.intermediate_tol == 0.1
+    assert nlp.element_derivatives and homotopy.max_refinements == 3
+    guess = seen["problem"].guess
+    assert guess.shape == (21, 8)
+    np.testing.assert_allclose(guess[:, 0], np.linspace(0.0, 3.0, 21))
+    np.testing.assert_allclose(guess[:, 4], 3.0 / 2.5)
+    np.testing.assert_allclose(guess[:, 1:4], np.tile([0.4, 0.0, 0.0], (21, 1)))
+
+
 def test_hole_profiles_follow_the_hole_constraints():
     """The replay's hole profiles (sidecar scene) lie on the constraints' boundaries: the
     ellipse ((x - x_c)/a)^2 + (z/b)^2 = 1, the bump's parabola z = b (1 - ((x - x_c)/a)^2)
