@@ -172,6 +172,9 @@ def test_a_lift_off_straight_from_stick_must_be_at_a_control_jump():
     with pytest.raises(InvalidInput, match=r"at 0\.55 s\) must be at a control jump"):
         polish.polish_contact(problem, (polish.Phase("stick", 0, 0.55),
                                         polish.Phase("flight", 0.55, 1)), guess=None)
+    with pytest.raises(InvalidInput, match=r"`guess` must be a ContactResult or a tuple "
+                                           r"\(t, x, u\).*got list"):
+        polish.polish_contact(problem, (polish.Phase("stick", 0, 1),), guess=[0, 1, 2])
 
 
 def test_free_normal_acceleration_is_gravity_plus_push_for_a_particle():

@@ -486,8 +486,12 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     substeps = options.substeps_per_interval(n_int)
     start = time.perf_counter()
 
-    guess_t, guess_x, guess_u = (guess if isinstance(guess, tuple)
-                                 else guess_from_result(guess))
+    if isinstance(guess, ContactResult):
+        guess = guess_from_result(guess)
+    if not (isinstance(guess, tuple) and len(guess) == 3):
+        raise InvalidInput("`guess` must be a ContactResult or a tuple (t, x, u) of node "
+                           f"times, states and controls, got {type(guess).__name__}")
+    guess_t, guess_x, guess_u = guess
     y_sym, u_sym = system.y, system.u
     n_y = y_sym.numel()
 
