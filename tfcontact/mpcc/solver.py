@@ -110,9 +110,10 @@ class Ipopt:
         threads: threads that evaluate the element derivatives (CasADi's thread map);
             the values do not depend on it.
         linear_solver: IPOPT's sparse symmetric indefinite solver, one of
-            `LINEAR_SOLVERS`: "mumps" (default) or "spral" (STFC's SSIDS, the open
-            successor of HSL's MA97; about 5x slower per iteration on the monoped, with
-            another homotopy path: benchmarks/monoped_settings.md, fifth session).
+            `LINEAR_SOLVERS`: "mumps" (default) or "spral" (STFC's open-source SSIDS, an
+            alternative to HSL's solvers, which the wheel lacks; about 5x slower per
+            iteration on the monoped, with another homotopy path:
+            benchmarks/monoped_settings.md, fifth session).
     """
 
     tol: float = 1e-10
