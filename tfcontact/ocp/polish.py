@@ -59,6 +59,7 @@ from tfcontact.ocp.contact import (
     _end_state_check,
     _local_defects,
     _reference_deviation,
+    _state_indices,
 )
 from tfcontact.ocp.verify import Verification, friction_cone_violation
 
@@ -430,11 +431,8 @@ def _interpolate(t: np.ndarray, x: np.ndarray, at: float) -> np.ndarray:
 def guess_from_result(result: ContactResult) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t, x, u) of a time-freezing plan as a guess of `polish_contact`: its physical
     trajectory's times and states x = (q, v) (frozen pieces dropped) and its controls."""
-    system = result.problem.system
     phys = result.physical
-    columns = (list(range(system.q_index.start, system.q_index.stop))
-               + list(range(system.v_index.start, system.v_index.stop)))
-    return phys.t, phys.y[:, columns], result.u
+    return phys.t, phys.y[:, _state_indices(result.problem.system)], result.u
 
 
 def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
