@@ -68,11 +68,11 @@ def solver_options(args: argparse.Namespace) -> ContactSolverOptions:
 def start_to_goal_guess(task) -> np.ndarray:
     """(q, v) at the interval boundaries with q_x and v_x linear from start to goal, the
     rest at the start: an interpolation, not a contact schedule."""
-    n = task.n_intervals
-    guess = np.zeros((n + 1, 8))
-    guess[:, :4] = task.q0
+    n, n_q = task.n_intervals, len(task.q0)
+    guess = np.zeros((n + 1, 2 * n_q))
+    guess[:, :n_q] = task.q0
     guess[:, 0] = np.linspace(task.q0[0], task.q_goal[0], n + 1)
-    guess[:, 4] = (task.q_goal[0] - task.q0[0]) / task.horizon
+    guess[:, n_q] = (task.q_goal[0] - task.q0[0]) / task.horizon
     return guess
 
 

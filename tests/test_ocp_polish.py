@@ -202,6 +202,7 @@ def test_the_saved_full_plan_meets_tf9_and_passes_the_exact_replay(saved_full_pl
     assert u.shape == (20, 2) and np.abs(u).max() <= 60 + 1e-9
     verification, holes = verify_saved(SAVED_PLAN)
     assert verification.passed and verification.open_loop_unstable
+    assert verification.clock_monotone and verification.clock_end_error < 1e-12
     assert verification.defect_sum < 5e-2
     assert holes >= -1e-6 and verification.min_gap >= -1e-3
     # The cone on the forces and impulses recomputed from the states and controls: three
@@ -231,10 +232,8 @@ def test_the_saved_full_plan_fails_with_one_control_moved(saved_full_plan, tmp_p
 def test_the_saved_full_plan_fails_with_node_times_off_the_horizon(saved_full_plan, tmp_path,
                                                                    change, monotone):
     """The plan's node times are its clock: they must not decrease and must end at T.
-    Checked on the saved plan (end 2.5 s, monotone), then with its last node 1 ms short
-    and with two nodes swapped in time."""
-    verification, _ = verify_saved(SAVED_PLAN)
-    assert verification.clock_monotone and verification.clock_end_error < 1e-12
+    The saved plan with its last node 1 ms short, and with two nodes swapped in time,
+    fails (its replay, gaps and cone still pass: measured defect sum 8.6e-3)."""
     moved = dict(saved_full_plan)
     t = moved["t"].copy()
     if change == "end":
