@@ -11,7 +11,7 @@ import pytest
 
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp import polish
-from tfcontact.scenes.monoped_exact import contact_values, verify_saved
+from tfcontact.scenes.monoped_exact import saved_phases, verify_saved
 from tfcontact.scenes.particles import G, painleve_rod, point_mass
 from tfcontact.timefreezing.reference import _planar_impulse_flow
 
@@ -210,7 +210,8 @@ def test_the_saved_full_plan_meets_tf9_and_passes_the_exact_replay(saved_full_pl
     from tfcontact.scenes.monoped import monoped_problem
     # the reduced task's robot, ground and friction are the full task's
     dyn = polish._Dynamics(monoped_problem("reduced").system.cls)
-    forces, impulses = contact_values(plan, dyn, 2.5)
+    forces, impulses = polish._contact_values(plan["t"], plan["x"], plan["u"],
+                                              saved_phases(plan), dyn, 2.5)
     assert len(impulses) == 3 and len(forces) > 300
     both = np.vstack([forces, impulses])
     assert both[:, 0].min() > 0
@@ -270,11 +271,12 @@ def test_tf9s_grid_re_solves_the_rk4_plan_but_fails_the_exact_replay():
     elements of 42 ms, and the exact replay from the plan's own states parts from it by
     more than 1 within one interval. Measured: 32 iterations, largest defect 14."""
     from tfcontact.scenes.monoped import monoped_problem
-    from tfcontact.scenes.monoped_exact import EXACT_TASK, saved_phases
+    from tfcontact.scenes.monoped_exact import EXACT_TASK
 
     plan = np.load(RK4_PLAN)
+    problem = monoped_problem(EXACT_TASK).problem
     polished = polish.polish_contact(
-        monoped_problem(EXACT_TASK).problem, saved_phases(plan),
+        problem, saved_phases(plan),
         polish.PolishOptions(substeps=3, integrator="radau", painleve_margin=0.0),
         guess=(plan["t"], plan["x"], plan["u"]), verbose=False)
     assert polished.solved
@@ -282,6 +284,19 @@ def test_tf9s_grid_re_solves_the_rk4_plan_but_fails_the_exact_replay():
     assert max(polished.verification.local_defects) > 1.0
     # its nodes are the stage points: 3 per element, two at each of the 3 touchdowns
     assert len(polished.t) >= 1 + 20 * 3 * 3 + 3
+    # The plan's arrays checked again (as a plan read from disk is), the forces and
+    # impulses recomputed from the nodes: the same verdict and the same figures.
+    again = polish.verify_polished(problem, polished.phases, polished.t, polished.x,
+                                   polished.u, polished.boundary_states)
+    first = polished.verification
+    assert again.passed == first.passed
+    np.testing.assert_array_equal(again.local_defects, first.local_defects)
+    assert again.min_gap == first.min_gap
+    assert again.friction_cone_violation == pytest.approx(first.friction_cone_violation,
+                                                          rel=1e-9, abs=1e-12)
+    with pytest.raises(InvalidInput, match=r"`u` has shape \(19, 2\); the problem needs"):
+        polish.verify_polished(problem, polished.phases, polished.t, polished.x,
+                               polished.u[:19], polished.boundary_states)
 
 
 def test_a_capped_re_solve_reports_progress_and_fails_honestly(monkeypatch, capsys):

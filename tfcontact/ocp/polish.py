@@ -747,8 +747,9 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     polished_phases = tuple(Phase(p.mode, s, e)
                             for p, s, e in zip(phases, starts, ends, strict=True))
     solve_time = time.perf_counter() - start
-    verification = _verify(cls, problem, clocks, boundary_x, u_value, times, node_x, dyn,
-                           forces, impact_values, options)
+    verification = _verify(problem, clocks=clocks, boundary_x=boundary_x, u=u_value,
+                           node_t=times, node_x=node_x, dyn=dyn, forces=forces,
+                           impulses=impact_values, options=options)
     plan = PolishedPlan(
         phases=polished_phases, t=times, x=node_x, u=u_value, boundary_states=boundary_x,
         contact_forces=forces, impact_impulses=impact_values, cost=float(sol.value(opti.f)),
@@ -760,14 +761,75 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     return plan
 
 
-def _verify(cls, problem: ContactProblem, clocks: np.ndarray, boundary_x: np.ndarray, u: np.ndarray,
-            node_t: np.ndarray, node_x: np.ndarray, dyn: _Dynamics, forces: np.ndarray,
-            impulses: np.ndarray, options: PolishOptions) -> Verification:
+def verify_polished(problem: ContactProblem, phases: tuple[Phase, ...], t: np.ndarray,
+                    x: np.ndarray, u: np.ndarray, boundary_states: np.ndarray,
+                    options: PolishOptions | None = None) -> Verification:
+    """The checks of `polish_contact` on a polished plan given by its arrays (a plan read
+    back from disk, or one changed by hand): the exact reference replays each control
+    interval from the plan's own state, the gaps are measured at the nodes, the friction
+    cone on the stick forces and touchdown impulses recomputed from the nodes' states and
+    controls (`polish_contact` checks those its NLP held: the same values), the node
+    times must not decrease and must end at the horizon.
+
+    Args:
+        problem: the `ContactProblem` the plan solves.
+        phases: its contact sequence (the polished switch times).
+        t, x: node times [s] and states (q, v), (n_nodes, 2 n_q); a touchdown has two
+            nodes at its time.
+        u: controls per interval, (N, n_u); boundary_states: (q, v) at the interval
+            boundaries, (N + 1, 2 n_q).
+        options: `PolishOptions` (its tolerances and Baumgarte gain).
+
+    Raises:
+        InvalidInput: arrays of the wrong shape for the problem.
+    """
+    options = options or PolishOptions()
+    cls = problem.system.cls
+    _check_system(cls)
+    n_int, n_x = problem.n_intervals, 2 * cls.n_q
+    t, x, u = np.asarray(t, dtype=float), np.asarray(x, dtype=float), np.asarray(u, dtype=float)
+    boundary_states = np.asarray(boundary_states, dtype=float)
+    expected = {"u": (u, (n_int, cls.n_u)), "boundary_states": (boundary_states, (n_int + 1, n_x)),
+                "x": (x, (len(t), n_x))}
+    for name, (value, shape) in expected.items():
+        if value.shape != shape:
+            raise InvalidInput(f"`{name}` has shape {value.shape}; the problem needs {shape}")
+    dyn = _Dynamics(cls, options.baumgarte)
+    forces, impulses = _contact_values(t, x, u, tuple(phases), dyn, problem.horizon)
+    clocks = np.arange(n_int + 1) * problem.horizon / n_int
+    return _verify(problem, clocks=clocks, boundary_x=boundary_states, u=u, node_t=t,
+                   node_x=x, dyn=dyn, forces=forces, impulses=impulses, options=options)
+
+
+def _contact_values(t: np.ndarray, x: np.ndarray, u: np.ndarray, phases: tuple[Phase, ...],
+                    dyn: _Dynamics, horizon: float) -> tuple[np.ndarray, np.ndarray]:
+    """(stick forces (n, 2) [N], touchdown impulses (m, 2) [N s]) of a plan's nodes: the
+    stick force at both ends of every segment between two nodes inside a stick phase, with
+    that segment's control (at a control jump both controls, as the re-solve's rows hold
+    them), and the impulse of each touchdown (two nodes at one time)."""
+    starts = np.array([p.start for p in phases])
+    dt = horizon / len(u)
+    forces, impulses = [], []
+    for i in range(len(t) - 1):
+        if t[i + 1] == t[i]:
+            impulses.append(np.asarray(dyn.impact(x[i])[1]).ravel())
+            continue
+        middle = 0.5 * (t[i] + t[i + 1])
+        if phases[int(np.searchsorted(starts, middle)) - 1].mode != STICK:
+            continue
+        u_k = u[min(int(middle / dt), len(u) - 1)]
+        forces += [np.asarray(dyn.force(x[j], u_k)).ravel() for j in (i, i + 1)]
+    return np.array(forces).reshape(-1, 2), np.array(impulses).reshape(-1, 2)
+
+
+def _verify(problem: ContactProblem, *, clocks: np.ndarray, boundary_x: np.ndarray,
+            u: np.ndarray, node_t: np.ndarray, node_x: np.ndarray, dyn: _Dynamics,
+            forces: np.ndarray, impulses: np.ndarray, options: PolishOptions) -> Verification:
     """The replay checks of `verify_plan` on the polished plan, plus its gaps, cone and
     node times (non-decreasing, the last at the horizon: there is no clock state, the
     plan runs in physical time)."""
     n_int, horizon = problem.n_intervals, problem.horizon
-    plan = ReplayedPlan(cls=cls, x0=np.concatenate([problem.q0, problem.v0]),
+    plan = ReplayedPlan(cls=problem.system.cls, x0=np.concatenate([problem.q0, problem.v0]),
                         clocks=clocks, states=boundary_x,
                         controls=u, horizon=horizon)
     notes: list[str] = []

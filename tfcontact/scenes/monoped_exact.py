@@ -41,18 +41,16 @@ from typing import Any
 
 import numpy as np
 
-from tfcontact.errors import InvalidInput
 from tfcontact.ocp.polish import (
     FLIGHT,
     STICK,
     Phase,
     PolishedPlan,
     PolishOptions,
-    _Dynamics,
-    _verify,
     contact_phases,
     polish_contact,
     refined_substeps,
+    verify_polished,
 )
 from tfcontact.ocp.verify import Verification
 from tfcontact.scenes.monoped import (
@@ -357,27 +355,6 @@ def saved_phases(plan: Any) -> tuple[Phase, ...]:
                  for m, a, b in zip(plan["phase_modes"], starts, ends, strict=True))
 
 
-def contact_values(plan: Any, dyn: _Dynamics, horizon: float) -> tuple[np.ndarray, np.ndarray]:
-    """(stick forces (n, 2) [N], touchdown impulses (m, 2) [N s]) of a saved plan: the
-    stick force at both ends of every segment between two nodes inside a stick phase, with that
-    segment's control (so at a control jump with both controls, as the re-solve's rows
-    hold them), and the impulse of each touchdown (two nodes at one time)."""
-    t, x, u = plan["t"], plan["x"], plan["u"]
-    starts, modes = plan["phase_starts"], plan["phase_modes"]
-    dt = horizon / len(u)
-    forces, impulses = [], []
-    for i in range(len(t) - 1):
-        if t[i + 1] == t[i]:
-            impulses.append(np.asarray(dyn.impact(x[i])[1]).ravel())
-            continue
-        middle = 0.5 * (t[i] + t[i + 1])
-        if modes[np.searchsorted(starts, middle) - 1] != STICK:
-            continue
-        u_k = u[min(int(middle / dt), len(u) - 1)]
-        forces += [np.asarray(dyn.force(x[j], u_k)).ravel() for j in (i, i + 1)]
-    return np.array(forces).reshape(-1, 2), np.array(impulses).reshape(-1, 2)
-
-
 def verify_saved(path: str | Path, task=EXACT_TASK) -> tuple[Verification, float]:
     """(Verification, smallest hole value) of a plan saved by `save_exact_plan`: the exact
     reference replays it interval by interval (the checks of `verify_plan`), the friction
@@ -385,15 +362,8 @@ def verify_saved(path: str | Path, task=EXACT_TASK) -> tuple[Verification, float
     and the holes are measured at its nodes."""
     plan = np.load(path)
     mp = monoped_problem(task)
-    if plan["u"].shape != (task.n_intervals, 2):
-        raise InvalidInput(f"{path}: controls of shape {plan['u'].shape}, the task has "
-                           f"{task.n_intervals} intervals of 2 torques")
-    dyn = _Dynamics(mp.system.cls)
-    n = task.n_intervals
-    clocks = np.array([k * task.horizon / n for k in range(n + 1)])
-    forces, impulses = contact_values(plan, dyn, task.horizon)
-    verification = _verify(mp.system.cls, mp.problem, clocks, plan["boundary"], plan["u"],
-                           plan["t"], plan["x"], dyn, forces, impulses, PolishOptions())
+    verification = verify_polished(mp.problem, saved_phases(plan), plan["t"], plan["x"],
+                                   plan["u"], plan["boundary"])
     return verification, float(np.min(mp.hole_values(plan["x"][:, :4])))
 
 
