@@ -189,6 +189,27 @@ def standing_plan():
     return mp, options, solve_contact(mp.problem, options, verbose=False)
 
 
+def test_a_time_freezing_plan_becomes_a_polish_guess_of_physical_times_and_states(
+        standing_plan):
+    """`guess_from_result`: the physical trajectory's times (frozen pieces dropped: they
+    never decrease and run from 0 to T) and its states x = (q, v) only, without the
+    time-freezing OCP state's other entries: its clock runs to 1 s and its cost state
+    is there too, while the stand does not move)."""
+    from tfcontact.ocp.polish import guess_from_result
+
+    _, _, result = standing_plan
+    t, x, u = guess_from_result(result)
+    assert t[0] == pytest.approx(0.0, abs=1e-12) and t[-1] == pytest.approx(1.0)
+    assert np.all(np.diff(t) >= 0.0) and len(t) == len(result.physical.t)
+    assert x.shape == (len(t), 8)
+    np.testing.assert_allclose(x, np.tile([0, 0.4, 0, 0, 0, 0, 0, 0], (len(t), 1)), atol=1e-6)
+    system = result.system  # the OCP's: the time-freezing state and a cost state
+    assert result.physical.y.shape[1] == 10
+    assert result.physical.y[-1, system.clock_index] == pytest.approx(1.0)
+    np.testing.assert_array_equal(x[:, 4:], result.physical.y[:, system.v_index])
+    np.testing.assert_array_equal(u, result.u)
+
+
 def test_an_open_loop_unstable_plan_passes_on_its_local_defects(standing_plan):
     """The standing plan is exact (measured: local defects sum to 6.5e-5), but its replay
     with the exact-impact reference falls over (measured: it ends 17.5 away), as any

@@ -432,7 +432,7 @@ def guess_from_result(result: ContactResult) -> tuple[np.ndarray, np.ndarray, np
     """(t, x, u) of a time-freezing plan as a guess of `polish_contact`: its physical
     trajectory's times and states x = (q, v) (frozen pieces dropped) and its controls."""
     phys = result.physical
-    return phys.t, phys.y[:, _state_indices(result.problem.system)], result.u
+    return phys.t, phys.y[:, _state_indices(result.system)], result.u
 
 
 def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
