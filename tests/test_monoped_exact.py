@@ -14,12 +14,14 @@ import pytest
 
 import tfcontact.scenes.monoped_exact as chain_module
 from tfcontact.cli import main
+from tfcontact.errors import InvalidInput
 from tfcontact.ocp.polish import FLIGHT, STICK, Phase, PolishedPlan
 from tfcontact.scenes.monoped import REDUCED_TASK, monoped_problem
 from tfcontact.scenes.monoped_exact import (
     EXACT_TASK,
-    LIFT_OFFS,
+    HAND_SET_SCHEDULE,
     ExactPlan,
+    Schedule,
     tiled_guess,
     verify_saved,
 )
@@ -116,15 +118,36 @@ def test_tiled_guess_repeats_the_hop_on_the_schedule():
         impact_impulses=np.zeros((0, 2)), cost=0.0, ipopt_status="Solve_Succeeded",
         iterations=0, solve_time=0.0, verification=None)
     (t_guess, x_guess, u_guess), phases = tiled_guess(hop, EXACT_TASK)
+    lift_offs = HAND_SET_SCHEDULE.lift_offs
     assert [p.mode for p in phases] == [STICK, FLIGHT] * 3 + [STICK]
-    assert [p.start for p in phases if p.mode == FLIGHT] == list(LIFT_OFFS)
+    assert [p.start for p in phases if p.mode == FLIGHT] == list(lift_offs)
     dt = EXACT_TASK.horizon / EXACT_TASK.n_intervals
-    assert all(abs(s / dt - round(s / dt)) < 1e-12 for s in LIFT_OFFS)  # control jumps
+    assert all(abs(s / dt - round(s / dt)) < 1e-12 for s in lift_offs)  # control jumps
     assert np.all(np.diff(t_guess) >= 0) and t_guess[-1] == pytest.approx(2.5)
     assert x_guess[0, 0] == 0.0 and x_guess[-1, 0] == pytest.approx(3.0)
     # the first stance: 0.6 s of the hop onto 0.5 s, so v_x = 1 / (5/6)
     assert x_guess[1, 4] == pytest.approx(1.2)
     assert u_guess.shape == (20, 2) and u_guess[0, 0] == pytest.approx(4.0 * 1.2**2)
+    # another schedule: its lift-offs and flights, the first stance 0.6 s onto 0.375 s
+    other = Schedule(lift_offs=(0.375, 1.0, 1.625), flight_time=0.3)
+    (t_guess, x_guess, _), phases = tiled_guess(hop, EXACT_TASK, other)
+    assert [(p.start, p.end) for p in phases if p.mode == FLIGHT] == [
+        (a, a + 0.3) for a in other.lift_offs]
+    assert x_guess[1, 4] == pytest.approx(0.6 / 0.375)
+    assert x_guess[-1, 0] == pytest.approx(3.0) and t_guess[-1] == pytest.approx(2.5)
+
+
+@pytest.mark.parametrize("lift_offs, flight, match", [
+    ((), 0.26, "needs lift-offs"), ((0.5, 1.0), 0.0, "positive flight"),
+    ((0.5, 0.7), 0.26, "after the last one landed"), ((0.0, 1.0), 0.26, "after t = 0")])
+def test_a_schedule_whose_hops_overlap_is_refused(lift_offs, flight, match):
+    with pytest.raises(InvalidInput, match=match):
+        Schedule(lift_offs=lift_offs, flight_time=flight)
+
+
+def test_a_schedule_landing_after_the_horizon_is_refused():
+    with pytest.raises(InvalidInput, match="lands after the horizon"):
+        tiled_guess(None, EXACT_TASK, Schedule(lift_offs=(0.5, 2.375), flight_time=0.26))
 
 
 def test_plan_monoped_writes_plan_trajectory_and_replay(monkeypatch, tmp_path, capsys):

@@ -9,7 +9,7 @@ converges and finds one hop: stick, flight, stick. The chain:
    its sequence with a slip before the lift-off (its start guessed at 0.55 s): 8 RK4
    nodes per interval, then 16, then 16 nodes x 2 RK4 steps, each warm started from the
    last. A verified plan of the reduced task.
-2. `tiled_guess`: that hop three times on the schedule `LIFT_OFFS` / `FLIGHT` (set by
+2. `tiled_guess`: that hop three times on a `Schedule` (`HAND_SET_SCHEDULE`: set by
    hand from the reduced hop, time scaled by 5/6): lift-offs straight from stick at the
    control jumps 0.5, 1.25 and 2.0 s, flights of 0.26 s, one metre further per hop.
 3. `full_exact_plan`: the exact re-solve of `EXACT_TASK` (T = 2.5 s, N = 20, three holes
@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from tfcontact.errors import InvalidInput
 from tfcontact.ocp.polish import (
     FLIGHT,
     STICK,
@@ -66,10 +67,32 @@ EXACT_TASK = dataclasses.replace(FULL_TASK, hole_half_width=0.25, hole_form="ell
 with TF-9's ellipses of half width 0.25 (the authors' robot_ocp.m; PROBLEMS.md lists 0.5,
 under which the holes at 0.5, 1.5 and 2.5 leave 0.5 m of ground between them)."""
 
-LIFT_OFFS = (0.5, 1.25, 2.0)
-"""Lift-offs [s] of the full task's guess: control jumps (T / N = 0.125 s)."""
-FLIGHT_TIME = 0.26
-"""Flight time [s] of each hop of the full task's guess."""
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """When the full task's guess hops: lift-offs [s] at control jumps, each flight
+    `flight_time` [s] long. The re-solve keeps each touchdown in the control interval its
+    guess lies in, so the schedule fixes the interval of every lift-off and touchdown."""
+
+    lift_offs: tuple[float, ...]
+    flight_time: float
+
+    def __post_init__(self) -> None:
+        if not self.lift_offs or not self.flight_time > 0:
+            raise InvalidInput(f"a schedule needs lift-offs and a positive flight time, got "
+                               f"{self.lift_offs!r}, {self.flight_time!r}")
+        landed = [t + self.flight_time for t in self.lift_offs[:-1]]
+        if self.lift_offs[0] <= 0 or any(
+                b <= a for a, b in zip(landed, self.lift_offs[1:], strict=True)):
+            raise InvalidInput(f"lift-offs {self.lift_offs} with flights of "
+                               f"{self.flight_time} s: each hop must start after the last "
+                               "one landed, the first after t = 0")
+
+
+HAND_SET_SCHEDULE = Schedule(lift_offs=(0.5, 1.25, 2.0), flight_time=0.26)
+"""The schedule of the verified plans: set by hand from the reduced hop (time scaled by
+5/6), lift-offs at control jumps (T / N = 0.125 s)."""
 HOP_LIFT_OFF, HOP_TOUCHDOWN = 0.6, 0.89
 """The reduced hop's lift-off and touchdown [s] as the tiling uses them (the measured hops:
 0.600 and 0.881 s; the verified full plans were made with these numbers)."""
@@ -243,20 +266,23 @@ def _chain(levels, phases, guess, steps: list[ChainStep], start: float,
                      message="" if plan.solved else f"{levels[-1][0]}: IPOPT {plan.ipopt_status}")
 
 
-def tiled_guess(hop: PolishedPlan, task=EXACT_TASK):
-    """The reduced hop three times on the schedule `LIFT_OFFS` / `FLIGHT_TIME`: ((t, x, u),
-    phases) as a guess of the full task. Each segment of the hop (stance before the
-    lift-off, flight, last stance) is time scaled onto its slot, velocities divided and
-    torques by the square of the scale, q_x moved one metre per hop."""
+def tiled_guess(hop: PolishedPlan, task=EXACT_TASK, schedule: Schedule = HAND_SET_SCHEDULE):
+    """The reduced hop once per lift-off of `schedule`: ((t, x, u), phases) as a guess of
+    the full task. Each segment of the hop (stance before the lift-off, flight, last
+    stance) is time scaled onto its slot, velocities divided and torques by the square of
+    the scale, q_x moved one metre per hop."""
+    if schedule.lift_offs[-1] + schedule.flight_time >= task.horizon:
+        raise InvalidInput(f"the schedule's last hop lands after the horizon {task.horizon} s")
+    lift_offs, flight_time = schedule.lift_offs, schedule.flight_time
     lift_off, touchdown = HOP_LIFT_OFF, HOP_TOUCHDOWN
     hop_end = hop.phases[-1].end
     segments = []  # (start, end, start in the hop, end in the hop, hop index)
     previous = 0.0
-    for j, jump in enumerate(LIFT_OFFS):
+    for j, jump in enumerate(lift_offs):
         segments.append((previous, jump, 0.0, lift_off, j))
-        segments.append((jump, jump + FLIGHT_TIME, lift_off, touchdown, j))
-        previous = jump + FLIGHT_TIME
-    segments.append((previous, task.horizon, touchdown, hop_end, len(LIFT_OFFS) - 1))
+        segments.append((jump, jump + flight_time, lift_off, touchdown, j))
+        previous = jump + flight_time
+    segments.append((previous, task.horizon, touchdown, hop_end, len(lift_offs) - 1))
     t_guess, x_guess = [], []
     for a, b, ra, rb, j in segments:
         scale = (b - a) / (rb - ra)
@@ -276,17 +302,19 @@ def tiled_guess(hop: PolishedPlan, task=EXACT_TASK):
         hop_time = ra + (middle - a) / scale
         index = min(int(hop_time / hop_end * len(hop.u)), len(hop.u) - 1)
         u_guess.append(hop.u[index] / scale**2)
-    phases = [Phase(STICK, 0.0, LIFT_OFFS[0])]
-    for jump in LIFT_OFFS:
-        phases += [Phase(FLIGHT, jump, jump + FLIGHT_TIME),
-                   Phase(STICK, jump + FLIGHT_TIME, task.horizon)]
+    phases = [Phase(STICK, 0.0, lift_offs[0])]
+    for jump in lift_offs:
+        phases += [Phase(FLIGHT, jump, jump + flight_time),
+                   Phase(STICK, jump + flight_time, task.horizon)]
     u_guess = np.clip(np.array(u_guess), -task.control_bound, task.control_bound)
     return (np.array(t_guess), np.array(x_guess), u_guess), tuple(phases)
 
 
-def full_exact_plan(verbose: bool = True) -> ExactPlan:
-    """TF-9's task (`EXACT_TASK`) by the chain of the module docstring. About an hour on
-    a 2-core machine (benchmarks/monoped_exact.md)."""
+def full_exact_plan(verbose: bool = True, schedule: Schedule = HAND_SET_SCHEDULE
+                    ) -> ExactPlan:
+    """TF-9's task (`EXACT_TASK`) by the chain of the module docstring, its guess the
+    reduced hop tiled on `schedule`. About an hour on a 2-core machine
+    (benchmarks/monoped_exact.md)."""
     start = time.perf_counter()
     reduced = reduced_exact_plan(verbose)
     steps = list(reduced.steps)
@@ -297,7 +325,7 @@ def full_exact_plan(verbose: bool = True) -> ExactPlan:
                                  f"{': ' + reduced.message if reduced.message else ''})")
     bumps = monoped_problem(dataclasses.replace(EXACT_TASK, hole_form="bump"))
     ellipses = monoped_problem(EXACT_TASK)
-    guess, phases = tiled_guess(reduced.plan, EXACT_TASK)
+    guess, phases = tiled_guess(reduced.plan, EXACT_TASK, schedule)
     options = {n: PolishOptions(substeps=n, steps_per_node=2, painleve_margin=0.0)
                for n in (8, 16)}
     levels = [("full task, bump holes, 8 nodes x 2 RK4 steps", bumps, options[8]),
