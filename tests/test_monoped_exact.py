@@ -107,16 +107,7 @@ def test_a_level_may_set_its_options_from_the_last_plan(monkeypatch):
 def test_tiled_guess_repeats_the_hop_on_the_schedule():
     """The hop three times: lift-offs at the control jumps 0.5, 1.25, 2.0 s, one metre
     further per hop, time scaled (velocities / scale, torques / scale^2)."""
-    t = np.linspace(0.0, 1.0, 101)
-    x = np.zeros((101, 8))
-    x[:, 0] = t  # q_x from 0 to 1
-    x[:, 4] = 1.0  # v_x
-    hop = PolishedPlan(
-        phases=(Phase(STICK, 0, 0.55), Phase("slip-", 0.55, 0.6), Phase(FLIGHT, 0.6, 0.89),
-                Phase(STICK, 0.89, 1.0)),
-        t=t, x=x, u=np.full((10, 2), 4.0), boundary_states=x[::10], contact_forces=np.zeros((0, 2)),
-        impact_impulses=np.zeros((0, 2)), cost=0.0, ipopt_status="Solve_Succeeded",
-        iterations=0, solve_time=0.0, verification=None)
+    hop = _hop()
     (t_guess, x_guess, u_guess), phases = tiled_guess(hop, EXACT_TASK)
     lift_offs = HAND_SET_SCHEDULE.lift_offs
     assert [p.mode for p in phases] == [STICK, FLIGHT] * 3 + [STICK]
@@ -135,6 +126,59 @@ def test_tiled_guess_repeats_the_hop_on_the_schedule():
         (a, a + 0.3) for a in other.lift_offs]
     assert x_guess[1, 4] == pytest.approx(0.6 / 0.375)
     assert x_guess[-1, 0] == pytest.approx(3.0) and t_guess[-1] == pytest.approx(2.5)
+
+
+def _hop() -> PolishedPlan:
+    """A stand-in reduced hop: q_x from 0 to 1 at 1 m/s, flight 0.6-0.89 s, 4 N m."""
+    t = np.linspace(0.0, 1.0, 101)
+    x = np.zeros((101, 8))
+    x[:, 0] = t
+    x[:, 4] = 1.0
+    return PolishedPlan(
+        phases=(Phase(STICK, 0, 0.55), Phase("slip-", 0.55, 0.6), Phase(FLIGHT, 0.6, 0.89),
+                Phase(STICK, 0.89, 1.0)),
+        t=t, x=x, u=np.full((10, 2), 4.0), boundary_states=x[::10],
+        contact_forces=np.zeros((0, 2)), impact_impulses=np.zeros((0, 2)), cost=0.0,
+        ipopt_status="Solve_Succeeded", iterations=0, solve_time=0.0, verification=None)
+
+
+def test_uniform_schedules_hop_once_per_hole_and_land_before_the_horizon():
+    """Lift-offs k_1, k_1 + s, k_1 + 2 s intervals (0.125 s), flights as long as the hop's
+    (0.29 s); (5, 6) would land at 2.415 s, after T - T / N = 2.375 s: left out."""
+    schedules = chain_module.uniform_schedules(_hop())
+    assert [s.lift_offs for s in schedules] == [
+        (0.375, 1.0, 1.625), (0.375, 1.125, 1.875), (0.5, 1.125, 1.75), (0.5, 1.25, 2.0),
+        (0.625, 1.25, 1.875)]
+    assert all(s.flight_time == pytest.approx(0.29) for s in schedules)
+
+
+def test_the_search_keeps_the_solved_schedule_with_the_lowest_objective(monkeypatch):
+    """Each candidate's first re-solve starts from the hop tiled on it; infeasible ones
+    are reported but not chosen, even with a lower objective."""
+    outcomes = {0.375: ("Solve_Succeeded", 226.0), 0.5: ("Infeasible_Problem_Detected", 100.0),
+                0.625: ("Solve_Succeeded", 190.0), 0.75: ("Maximum_Iterations_Exceeded", 50.0)}
+    seen = []
+
+    def fake_polish(problem, phases, options, *, guess, verbose):
+        lift_off = next(p.start for p in phases if p.mode == FLIGHT)
+        seen.append(lift_off)
+        return _plan(*outcomes[lift_off])
+
+    monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
+    mp = monoped_problem(EXACT_TASK)
+    schedules = tuple(Schedule((a, a + 0.75), 0.26) for a in outcomes)
+    best, trials = chain_module.search_schedule(_hop(), schedules, mp, None, verbose=False)
+    assert seen == list(outcomes) and len(trials) == 4
+    assert best.schedule.lift_offs == (0.625, 1.375) and best.plan.cost == 190.0
+    outcomes.update({0.375: ("Infeasible_Problem_Detected", 1.0),
+                     0.625: ("Restoration_Failed", 1.0)})
+    best, trials = chain_module.search_schedule(_hop(), schedules, mp, None, verbose=False)
+    assert best is None and len(trials) == 4
+
+
+def test_full_exact_plan_refuses_an_unknown_schedule():
+    with pytest.raises(InvalidInput, match="Schedule or 'search'"):
+        chain_module.full_exact_plan(verbose=False, schedule="hand")
 
 
 @pytest.mark.parametrize("lift_offs, flight, match", [

@@ -310,11 +310,70 @@ def tiled_guess(hop: PolishedPlan, task=EXACT_TASK, schedule: Schedule = HAND_SE
     return (np.array(t_guess), np.array(x_guess), u_guess), tuple(phases)
 
 
-def full_exact_plan(verbose: bool = True, schedule: Schedule = HAND_SET_SCHEDULE
+def uniform_schedules(hop: PolishedPlan, task=EXACT_TASK, first=(3, 4, 5),
+                      spacing=(5, 6)) -> tuple[Schedule, ...]:
+    """One hop per hole, each as long in flight as the reduced hop's, the lift-offs at the
+    control jumps k_1 T / N, (k_1 + s) T / N, ... for each first jump k_1 in `first` and
+    spacing s in `spacing` whose last touchdown leaves at least one control interval of
+    stance before the horizon (the hops' count is the scene's: the foot has no ground
+    inside a hole)."""
+    dt = task.horizon / task.n_intervals
+    flight = next(p for p in hop.phases if p.mode == FLIGHT)
+    flight_time = flight.end - flight.start
+    schedules = []
+    for k_1 in first:
+        for s in spacing:
+            lift_offs = tuple((k_1 + j * s) * dt for j in range(len(task.holes)))
+            if lift_offs[-1] + flight_time <= task.horizon - dt:
+                schedules.append(Schedule(lift_offs, flight_time))
+    return tuple(schedules)
+
+
+@dataclass(frozen=True)
+class ScheduleTrial:
+    """A candidate schedule and its first re-solve (bump holes, 8 nodes x 2 RK4 steps)."""
+
+    schedule: Schedule
+    plan: PolishedPlan
+    seconds: float
+
+
+def search_schedule(hop: PolishedPlan, schedules: tuple[Schedule, ...], problem: MonopedProblem,
+                    options: PolishOptions, verbose: bool = True
+                    ) -> tuple[ScheduleTrial | None, tuple[ScheduleTrial, ...]]:
+    """Re-solve the full task from the hop tiled on each schedule; (the trial IPOPT solved
+    with the lowest objective or None, every trial). A schedule the re-solve cannot follow
+    ends infeasible (benchmarks/monoped_settings.md, sixth session: 4 of 8 did)."""
+    trials = []
+    for i, schedule in enumerate(schedules):
+        guess, phases = tiled_guess(hop, problem.task, schedule)
+        begin = time.perf_counter()
+        plan = polish_contact(problem.problem, phases, options, guess=guess, verbose=False)
+        _return_memory()
+        trials.append(ScheduleTrial(schedule, plan, time.perf_counter() - begin))
+        if verbose:
+            print(f"monoped: schedule {i + 1} of {len(schedules)}, lift-offs "
+                  f"{', '.join(f'{t:g}' for t in schedule.lift_offs)} s: IPOPT "
+                  f"{plan.ipopt_status}, {plan.iterations} iterations, "
+                  f"{trials[-1].seconds:.0f} s, objective {plan.cost:.6g}", flush=True)
+    solved = [t for t in trials if t.plan.solved]
+    best = min(solved, key=lambda t: t.plan.cost) if solved else None
+    return best, tuple(trials)
+
+
+def full_exact_plan(verbose: bool = True, schedule: Schedule | str = HAND_SET_SCHEDULE
                     ) -> ExactPlan:
     """TF-9's task (`EXACT_TASK`) by the chain of the module docstring, its guess the
-    reduced hop tiled on `schedule`. About an hour on a 2-core machine
-    (benchmarks/monoped_exact.md)."""
+    reduced hop tiled on `schedule`, or with schedule="search" on the
+    `uniform_schedules` candidate whose first re-solve IPOPT solves with the lowest
+    objective (`search_schedule`; that re-solve is the chain's first step). About an hour
+    on a 2-core machine with the hand-set schedule (benchmarks/monoped_exact.md).
+
+    Raises:
+        InvalidInput: `schedule` is neither a `Schedule` nor "search".
+    """
+    if not (isinstance(schedule, Schedule) or schedule == "search"):
+        raise InvalidInput(f"`schedule` must be a Schedule or 'search', got {schedule!r}")
     start = time.perf_counter()
     reduced = reduced_exact_plan(verbose)
     steps = list(reduced.steps)
@@ -325,14 +384,28 @@ def full_exact_plan(verbose: bool = True, schedule: Schedule = HAND_SET_SCHEDULE
                                  f"{': ' + reduced.message if reduced.message else ''})")
     bumps = monoped_problem(dataclasses.replace(EXACT_TASK, hole_form="bump"))
     ellipses = monoped_problem(EXACT_TASK)
-    guess, phases = tiled_guess(reduced.plan, EXACT_TASK, schedule)
     options = {n: PolishOptions(substeps=n, steps_per_node=2, painleve_margin=0.0)
                for n in (8, 16)}
     levels = [("full task, bump holes, 8 nodes x 2 RK4 steps", bumps, options[8]),
               ("full task, bump holes, 16 nodes x 2 RK4 steps", bumps, options[16]),
               ("full task, TF-9's ellipses, 16 nodes x 2 RK4 steps", ellipses, options[16]),
               *radau_levels(ellipses)]
-    return _chain(levels, phases, guess, steps, start, verbose)
+    if schedule != "search":
+        guess, phases = tiled_guess(reduced.plan, EXACT_TASK, schedule)
+        return _chain(levels, phases, guess, steps, start, verbose)
+    best, trials = search_schedule(reduced.plan, uniform_schedules(reduced.plan), bumps,
+                                   options[8], verbose)
+    steps += [_step(f"{levels[0][0]}, lift-offs "
+                    f"{', '.join(f'{t:g}' for t in trial.schedule.lift_offs)} s",
+                    trial.plan, trial.seconds) for trial in trials]
+    if best is None:
+        return ExactPlan(None, bumps, tuple(steps), float("nan"), time.perf_counter() - start,
+                         message=f"no schedule of {len(trials)} gave a solved re-solve")
+    if verbose:
+        print(f"monoped: schedule found, lift-offs {best.schedule.lift_offs} s, flights of "
+              f"{best.schedule.flight_time:.4g} s", flush=True)
+    plan = best.plan
+    return _chain(levels[1:], plan.phases, (plan.t, plan.x, plan.u), steps, start, verbose)
 
 
 def radau_options(substeps: int | tuple[int, ...] = RADAU_ELEMENTS) -> PolishOptions:
