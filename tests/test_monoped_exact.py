@@ -194,6 +194,23 @@ def test_a_schedule_landing_after_the_horizon_is_refused():
         tiled_guess(None, EXACT_TASK, Schedule(lift_offs=(0.5, 2.375), flight_time=0.26))
 
 
+def test_plan_monoped_search_asks_for_the_searched_schedule(monkeypatch, tmp_path, capsys):
+    """`--task search` runs the full chain with schedule="search"; a chain that found no
+    schedule exits 1 with its reason and writes no plan."""
+    calls = []
+
+    def fake(verbose, schedule=chain_module.HAND_SET_SCHEDULE):
+        calls.append(schedule)
+        return ExactPlan(None, monoped_problem(EXACT_TASK), (), float("nan"), 1.0,
+                         message="no schedule of 5 gave a solved re-solve")
+
+    monkeypatch.setattr(chain_module, "full_exact_plan", fake)
+    assert main(["plan", "monoped", "--task", "search", "--out", str(tmp_path)]) == 1
+    assert calls == ["search"]
+    assert "no schedule of 5 gave a solved re-solve" in capsys.readouterr().out
+    assert not (tmp_path / "plan.npz").exists()
+
+
 def test_plan_monoped_writes_plan_trajectory_and_replay(monkeypatch, tmp_path, capsys):
     """`tfcontact plan monoped` writes the chain's plan (verified again from the file),
     its trajectory with the three touchdowns as frozen pieces carrying the impulses,

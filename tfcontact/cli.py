@@ -2,7 +2,7 @@
 
     tfcontact plan --list
     tfcontact plan hopper --out DIR [--task long] [--attempts N] [--quiet]
-    tfcontact plan monoped --out DIR [--task reduced]
+    tfcontact plan monoped --out DIR [--task reduced|search]
     tfcontact replay DIR/trajectory.npz [--html OUT] [--open]
 """
 
@@ -51,7 +51,8 @@ def main(argv: list[str] | None = None) -> int:
     plan.add_argument("--list", action="store_true", help="list the available plans")
     plan.add_argument("--out", help="output folder (default out/NAME)")
     plan.add_argument("--task", default=None,
-                      help="a variant of the plan (hopper: short, long; monoped: full, reduced)")
+                      help="a variant of the plan (hopper: short, long; "
+                           "monoped: full, reduced, search)")
     plan.add_argument("--attempts", type=int, default=None,
                       help="solve a failed plan again from a perturbed guess, up to this "
                            "many solves in all (default: the plan's; hopper: 3 for the short task)")

@@ -81,7 +81,8 @@ def _hopper(task: str | None) -> PlanSetup:
 def _monoped(task: str, out: Path, verbose: bool) -> PlanOutcome:
     """The two-stage chain of `tfcontact.scenes.monoped_exact`: the time-freezing homotopy
     finds the reduced task's hop, the exact re-solve makes it a verified plan ("reduced"),
-    tiled three times for TF-9's task ("full")."""
+    tiled three times for TF-9's task on the hand-set schedule ("full") or on a searched
+    one ("search")."""
     from tfcontact.scenes.monoped_exact import (
         full_exact_plan,
         plot_exact_plan,
@@ -90,7 +91,11 @@ def _monoped(task: str, out: Path, verbose: bool) -> PlanOutcome:
     )
     from tfcontact.viz.plan import trajectory_from_polished
 
-    chain = full_exact_plan(verbose) if task == "full" else reduced_exact_plan(verbose)
+    if task == "reduced":
+        chain = reduced_exact_plan(verbose)
+    else:  # "search": the full task's schedule searched instead of the hand-set one
+        chain = (full_exact_plan(verbose, schedule="search") if task == "search"
+                 else full_exact_plan(verbose))
     mp = chain.problem
     if verbose:
         print(chain.summary(), flush=True)
@@ -124,11 +129,11 @@ PLANS: dict[str, Plan] = {
     "monoped": Plan(
         name="monoped",
         summary="Capler monoped (robots/monoped.urdf), TF-9: hop over three holes to x = 3 "
-                "(about an hour; --task reduced: one hole, to x = 1, 6 min): "
-                "time-freezing homotopy, then the exact re-solve along its contact "
-                "sequence",
+                "(about an hour; --task reduced: one hole, to x = 1, 6 min; --task search: "
+                "the full task's hop schedule searched, not hand-set): time-freezing "
+                "homotopy, then the exact re-solve along its contact sequence",
         build=None,
-        tasks=("full", "reduced"),
+        tasks=("full", "reduced", "search"),
         solve=_monoped,
     ),
 }
