@@ -12,6 +12,11 @@ converges and finds one hop: stick, flight, stick. The chain:
 2. `tiled_guess`: that hop three times on a `Schedule` (`HAND_SET_SCHEDULE`: set by
    hand from the reduced hop, time scaled by 5/6): lift-offs straight from stick at the
    control jumps 0.5, 1.25 and 2.0 s, flights of 0.26 s, one metre further per hop.
+   Or, with `full_exact_plan(schedule="search")`, the schedule is searched:
+   `uniform_schedules` lists one hop per hole with the hop's flight time and lift-offs at
+   evenly spaced control jumps, and each candidate gets the first re-solve of step 3. The
+   solved candidate with the lowest objective continues. The number of hops and the even
+   spacing are still a rule; the lift-off times are not set by hand.
 3. `full_exact_plan`: the exact re-solve of `EXACT_TASK` (T = 2.5 s, N = 20, three holes
    of half width 0.25 as in the authors' robot_ocp.m) along that schedule with free
    touchdowns: with bump holes (8 nodes x 2 RK4 steps, then 16 x 2), then with TF-9's
