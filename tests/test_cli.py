@@ -24,7 +24,7 @@ def test_monoped_plan_is_tf9_from_the_urdf():
     from tfcontact.scenes.monoped_exact import EXACT_TASK
 
     plan = PLANS["monoped"]
-    assert plan.solve is not None and plan.tasks == ("full", "reduced", "search")
+    assert plan.solve is not None and plan.tasks == ("full", "reduced", "hand-set")
     mp = monoped_problem(EXACT_TASK)
     assert mp.robot.nq == 4 and mp.problem.n_intervals == 20 and mp.problem.horizon == 2.5
     scene = mp.scene()

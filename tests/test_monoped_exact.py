@@ -194,19 +194,24 @@ def test_a_schedule_landing_after_the_horizon_is_refused():
         tiled_guess(None, EXACT_TASK, Schedule(lift_offs=(0.5, 2.375), flight_time=0.26))
 
 
-def test_plan_monoped_search_asks_for_the_searched_schedule(monkeypatch, tmp_path, capsys):
-    """`--task search` runs the full chain with schedule="search"; a chain that found no
-    schedule exits 1 with its reason and writes no plan."""
+@pytest.mark.parametrize("task, schedule", [(None, "search"), ("full", "search"),
+                                            ("hand-set", chain_module.HAND_SET_SCHEDULE)])
+def test_plan_monoped_searches_its_schedule_unless_asked_for_the_hand_set_one(
+        monkeypatch, tmp_path, capsys, task, schedule):
+    """The full task (the default) runs the chain with schedule="search", `--task
+    hand-set` with `HAND_SET_SCHEDULE`; a chain that found no schedule exits 1 with its
+    reason and writes no plan."""
     calls = []
 
-    def fake(verbose, schedule=chain_module.HAND_SET_SCHEDULE):
+    def fake(verbose, schedule):
         calls.append(schedule)
         return ExactPlan(None, monoped_problem(EXACT_TASK), (), float("nan"), 1.0,
                          message="no schedule of 5 gave a solved re-solve")
 
     monkeypatch.setattr(chain_module, "full_exact_plan", fake)
-    assert main(["plan", "monoped", "--task", "search", "--out", str(tmp_path)]) == 1
-    assert calls == ["search"]
+    assert main(["plan", "monoped", "--out", str(tmp_path)]
+                + (["--task", task] if task else [])) == 1
+    assert calls == [schedule]
     assert "no schedule of 5 gave a solved re-solve" in capsys.readouterr().out
     assert not (tmp_path / "plan.npz").exists()
 
@@ -226,7 +231,7 @@ def test_plan_monoped_writes_plan_trajectory_and_replay(monkeypatch, tmp_path, c
         substeps=tuple(int(n) for n in saved["substeps"]))
     mp = monoped_problem(EXACT_TASK)
     fake = ExactPlan(plan, mp, (), holes, 1.0)
-    monkeypatch.setattr(chain_module, "full_exact_plan", lambda verbose: fake)
+    monkeypatch.setattr(chain_module, "full_exact_plan", lambda verbose, schedule: fake)
     assert main(["plan", "monoped", "--out", str(tmp_path)]) == 0
     assert "plan monoped (full): converged" in capsys.readouterr().out
     for name in ("plan.npz", "path.png", "trajectory.npz", "trajectory.json", "replay.html",

@@ -17,6 +17,7 @@ from tfcontact.timefreezing.reference import _planar_impulse_flow
 
 SAVED_PLAN = Path(__file__).resolve().parents[1] / "benchmarks" / "monoped_exact_plan.npz"
 RK4_PLAN = SAVED_PLAN.with_name("monoped_exact_rk4_plan.npz")  # the Radau levels' start
+SEARCH_PLAN = SAVED_PLAN.with_name("monoped_search_plan.npz")  # `tfcontact plan monoped`
 
 
 def test_stick_holds_a_pushed_particle_with_the_opposing_friction():
@@ -191,16 +192,18 @@ def saved_full_plan():
     return np.load(SAVED_PLAN)
 
 
-def test_the_saved_full_plan_meets_tf9_and_passes_the_exact_replay(saved_full_plan):
-    """benchmarks/monoped_exact_plan.npz (the chain's verified TF-9 plan): from q0 at rest to
-    the goal within |u| <= 60, TF-9's ellipses kept at its nodes, and each control
+@pytest.mark.parametrize("path", [SAVED_PLAN, SEARCH_PLAN], ids=["hand-set", "searched"])
+def test_the_saved_full_plan_meets_tf9_and_passes_the_exact_replay(path):
+    """benchmarks/monoped_exact_plan.npz (the chain's verified TF-9 plan on the hand-set
+    schedule) and monoped_search_plan.npz (on the searched one): from q0 at rest to the
+    goal within |u| <= 60, TF-9's ellipses kept at its nodes, and each control
     interval's exact replay from the plan's own state within the tolerance in sum."""
-    plan = saved_full_plan
+    plan = np.load(path)
     boundary, u = plan["boundary"], plan["u"]
     np.testing.assert_allclose(boundary[0], [0, 0.4, 0, 0, 0, 0, 0, 0], atol=1e-9)
     np.testing.assert_allclose(boundary[-1][:4], [3.0, 0.4, 0.0, 0.0], atol=1e-6)
     assert u.shape == (20, 2) and np.abs(u).max() <= 60 + 1e-9
-    verification, holes = verify_saved(SAVED_PLAN)
+    verification, holes = verify_saved(path)
     assert verification.passed and verification.open_loop_unstable
     assert verification.clock_monotone and verification.clock_end_error < 1e-12
     assert verification.defect_sum < 5e-2

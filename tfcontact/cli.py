@@ -2,7 +2,7 @@
 
     tfcontact plan --list
     tfcontact plan hopper --out DIR [--task long] [--attempts N] [--quiet]
-    tfcontact plan monoped --out DIR [--task reduced|search]
+    tfcontact plan monoped --out DIR [--task reduced|hand-set]
     tfcontact replay DIR/trajectory.npz [--html OUT] [--open]
 """
 
@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     plan.add_argument("--out", help="output folder (default out/NAME)")
     plan.add_argument("--task", default=None,
                       help="a variant of the plan (hopper: short, long; "
-                           "monoped: full, reduced, search)")
+                           "monoped: full, reduced, hand-set)")
     plan.add_argument("--attempts", type=int, default=None,
                       help="solve a failed plan again from a perturbed guess, up to this "
                            "many solves in all (default: the plan's; hopper: 3 for the short task)")

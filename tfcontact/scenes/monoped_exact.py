@@ -9,14 +9,15 @@ converges and finds one hop: stick, flight, stick. The chain:
    its sequence with a slip before the lift-off (its start guessed at 0.55 s): 8 RK4
    nodes per interval, then 16, then 16 nodes x 2 RK4 steps, each warm started from the
    last. A verified plan of the reduced task.
-2. `tiled_guess`: that hop three times on a `Schedule` (`HAND_SET_SCHEDULE`: set by
-   hand from the reduced hop, time scaled by 5/6): lift-offs straight from stick at the
-   control jumps 0.5, 1.25 and 2.0 s, flights of 0.26 s, one metre further per hop.
-   Or, with `full_exact_plan(schedule="search")`, the schedule is searched:
-   `uniform_schedules` lists one hop per hole with the hop's flight time and lift-offs at
-   evenly spaced control jumps, and each candidate gets the first re-solve of step 3. The
-   solved candidate with the lowest objective continues. The number of hops and the even
-   spacing are still a rule; the lift-off times are not set by hand.
+2. `tiled_guess`: that hop three times on a `Schedule`, lift-offs straight from stick at
+   control jumps, one metre further per hop. `full_exact_plan` searches the schedule by
+   default: `uniform_schedules` lists one hop per hole with the hop's flight time and
+   lift-offs at evenly spaced control jumps, each candidate gets the first re-solve of
+   step 3, and the solved candidate with the lowest objective continues (measured:
+   lift-offs 0.5, 1.125, 1.75 s). The number of hops and the even spacing are a rule;
+   the lift-off times are not set by hand. `HAND_SET_SCHEDULE` is the schedule of the
+   earlier plans, set by hand from the reduced hop time scaled by 5/6: lift-offs 0.5,
+   1.25 and 2.0 s, flights of 0.26 s.
 3. `full_exact_plan`: the exact re-solve of `EXACT_TASK` (T = 2.5 s, N = 20, three holes
    of half width 0.25 as in the authors' robot_ocp.m) along that schedule with free
    touchdowns: with bump holes (8 nodes x 2 RK4 steps, then 16 x 2), then with TF-9's
@@ -366,13 +367,14 @@ def search_schedule(hop: PolishedPlan, schedules: tuple[Schedule, ...], problem:
     return best, tuple(trials)
 
 
-def full_exact_plan(verbose: bool = True, schedule: Schedule | str = HAND_SET_SCHEDULE
+def full_exact_plan(verbose: bool = True, schedule: Schedule | str = "search"
                     ) -> ExactPlan:
     """TF-9's task (`EXACT_TASK`) by the chain of the module docstring, its guess the
-    reduced hop tiled on `schedule`, or with schedule="search" on the
-    `uniform_schedules` candidate whose first re-solve IPOPT solves with the lowest
-    objective (`search_schedule`; that re-solve is the chain's first step). About an hour
-    on a 2-core machine with the hand-set schedule (benchmarks/monoped_exact.md).
+    reduced hop tiled on the `uniform_schedules` candidate whose first re-solve IPOPT
+    solves with the lowest objective (schedule="search": `search_schedule`; that re-solve
+    is the chain's first step), or on a given `Schedule` (`HAND_SET_SCHEDULE`: the
+    earlier verified plan). About an hour on a 2-core machine either way
+    (benchmarks/monoped_exact.md).
 
     Raises:
         InvalidInput: `schedule` is neither a `Schedule` nor "search".

@@ -81,9 +81,10 @@ def _hopper(task: str | None) -> PlanSetup:
 def _monoped(task: str, out: Path, verbose: bool) -> PlanOutcome:
     """The two-stage chain of `tfcontact.scenes.monoped_exact`: the time-freezing homotopy
     finds the reduced task's hop, the exact re-solve makes it a verified plan ("reduced"),
-    tiled three times for TF-9's task on the hand-set schedule ("full") or on a searched
-    one ("search")."""
+    tiled three times for TF-9's task on a searched schedule ("full") or on the hand-set
+    one ("hand-set")."""
     from tfcontact.scenes.monoped_exact import (
+        HAND_SET_SCHEDULE,
         full_exact_plan,
         plot_exact_plan,
         reduced_exact_plan,
@@ -93,9 +94,9 @@ def _monoped(task: str, out: Path, verbose: bool) -> PlanOutcome:
 
     if task == "reduced":
         chain = reduced_exact_plan(verbose)
-    else:  # "search": the full task's schedule searched instead of the hand-set one
-        chain = (full_exact_plan(verbose, schedule="search") if task == "search"
-                 else full_exact_plan(verbose))
+    else:  # "full": the hop schedule searched; "hand-set": the earlier verified route
+        chain = full_exact_plan(verbose, schedule="search" if task == "full"
+                                else HAND_SET_SCHEDULE)
     mp = chain.problem
     if verbose:
         print(chain.summary(), flush=True)
@@ -129,11 +130,11 @@ PLANS: dict[str, Plan] = {
     "monoped": Plan(
         name="monoped",
         summary="Capler monoped (robots/monoped.urdf), TF-9: hop over three holes to x = 3 "
-                "(about an hour; --task reduced: one hole, to x = 1, 6 min; --task search: "
-                "the full task's hop schedule searched, not hand-set): time-freezing "
-                "homotopy, then the exact re-solve along its contact sequence",
+                "(about an hour; --task reduced: one hole, to x = 1, 6 min; --task "
+                "hand-set: the hops on a hand-set schedule instead of a searched one): "
+                "time-freezing homotopy, then the exact re-solve along its contact sequence",
         build=None,
-        tasks=("full", "reduced", "search"),
+        tasks=("full", "reduced", "hand-set"),
         solve=_monoped,
     ),
 }
