@@ -152,7 +152,7 @@ def test_uniform_schedules_hop_once_per_hole_and_land_before_the_horizon():
     assert all(s.flight_time == pytest.approx(0.29) for s in schedules)
 
 
-def test_the_search_keeps_the_solved_schedule_with_the_lowest_objective(monkeypatch):
+def test_the_search_keeps_the_solved_schedule_with_the_lowest_objective(monkeypatch, capsys):
     """Each candidate's first re-solve starts from the hop tiled on it; infeasible ones
     are reported but not chosen, even with a lower objective."""
     outcomes = {0.375: ("Solve_Succeeded", 226.0), 0.5: ("Infeasible_Problem_Detected", 100.0),
@@ -167,8 +167,11 @@ def test_the_search_keeps_the_solved_schedule_with_the_lowest_objective(monkeypa
     monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
     mp = monoped_problem(EXACT_TASK)
     schedules = tuple(Schedule((a, a + 0.75), 0.26) for a in outcomes)
-    best, trials = chain_module.search_schedule(_hop(), schedules, mp, None, verbose=False)
+    best, trials = chain_module.search_schedule(_hop(), schedules, mp, None, verbose=True)
     assert seen == list(outcomes) and len(trials) == 4
+    out = capsys.readouterr().out  # a line as each candidate starts, one as it ends
+    assert "monoped: schedule 2 of 4, lift-offs 0.5, 1.25 s" in out
+    assert "  IPOPT Infeasible_Problem_Detected, 7 iterations" in out
     assert best.schedule.lift_offs == (0.625, 1.375) and best.plan.cost == 190.0
     outcomes.update({0.375: ("Infeasible_Problem_Detected", 1.0),
                      0.625: ("Restoration_Failed", 1.0)})

@@ -97,8 +97,9 @@ class Schedule:
 
 
 HAND_SET_SCHEDULE = Schedule(lift_offs=(0.5, 1.25, 2.0), flight_time=0.26)
-"""The schedule of the verified plans: set by hand from the reduced hop (time scaled by
-5/6), lift-offs at control jumps (T / N = 0.125 s)."""
+"""The schedule of the earlier verified plan (benchmarks/monoped_exact_plan.npz,
+`tfcontact plan monoped --task hand-set`): set by hand from the reduced hop (time scaled
+by 5/6), lift-offs at control jumps (T / N = 0.125 s)."""
 HOP_LIFT_OFF, HOP_TOUCHDOWN = 0.6, 0.89
 """The reduced hop's lift-off and touchdown [s] as the tiling uses them (the measured hops:
 0.600 and 0.881 s; the verified full plans were made with these numbers)."""
@@ -352,15 +353,16 @@ def search_schedule(hop: PolishedPlan, schedules: tuple[Schedule, ...], problem:
     ends infeasible (benchmarks/monoped_settings.md, sixth session: 4 of 8 did)."""
     trials = []
     for i, schedule in enumerate(schedules):
+        if verbose:  # a candidate takes 1-5 minutes
+            print(f"monoped: schedule {i + 1} of {len(schedules)}, lift-offs "
+                  f"{', '.join(f'{t:g}' for t in schedule.lift_offs)} s", flush=True)
         guess, phases = tiled_guess(hop, problem.task, schedule)
         begin = time.perf_counter()
         plan = polish_contact(problem.problem, phases, options, guess=guess, verbose=False)
         _return_memory()
         trials.append(ScheduleTrial(schedule, plan, time.perf_counter() - begin))
         if verbose:
-            print(f"monoped: schedule {i + 1} of {len(schedules)}, lift-offs "
-                  f"{', '.join(f'{t:g}' for t in schedule.lift_offs)} s: IPOPT "
-                  f"{plan.ipopt_status}, {plan.iterations} iterations, "
+            print(f"  IPOPT {plan.ipopt_status}, {plan.iterations} iterations, "
                   f"{trials[-1].seconds:.0f} s, objective {plan.cost:.6g}", flush=True)
     solved = [t for t in trials if t.plan.solved]
     best = min(solved, key=lambda t: t.plan.cost) if solved else None
