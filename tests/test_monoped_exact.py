@@ -179,6 +179,31 @@ def test_the_search_keeps_the_solved_schedule_with_the_lowest_objective(monkeypa
     assert best is None and len(trials) == 4
 
 
+def test_the_searched_schedule_s_re_solve_starts_the_rest_of_the_chain(monkeypatch):
+    """With schedule="search": every candidate is a step of the chain, the cheapest solved
+    one's plan is the next re-solve's guess, and the chain skips its own first step."""
+    quiet = types.SimpleNamespace(passed=True, summary=str, local_defects=(1e-4,) * 20)
+    reduced = ExactPlan(dataclasses.replace(_hop(), verification=quiet),
+                        monoped_problem(REDUCED_TASK), (), 0.0, 1.0)
+    monkeypatch.setattr(chain_module, "reduced_exact_plan", lambda verbose: reduced)
+    costs = iter([203.0, 190.0, 223.0, 446.0, 205.0, 191.0, 191.5, 192.6, 192.6])
+    guesses = []
+
+    def fake_polish(problem, phases, options, *, guess, verbose):
+        guesses.append(guess)
+        cost = next(costs)
+        return _plan("Solve_Succeeded", cost, shift=cost, verification=quiet)
+
+    monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
+    result = chain_module.full_exact_plan(verbose=False)
+    names = [step.name for step in result.steps]
+    assert len(names) == 5 + 4 and all("lift-offs" in n for n in names[:5])
+    assert "lift-offs 0.375, 1.125, 1.875 s" in names[1] and result.steps[1].objective == 190.0
+    assert names[5] == "full task, bump holes, 16 nodes x 2 RK4 steps"
+    assert guesses[5][1][0, 0] == 190.0  # the chosen candidate's states
+    assert result.status == "converged" and result.plan.cost == 192.6
+
+
 def test_full_exact_plan_refuses_an_unknown_schedule():
     with pytest.raises(InvalidInput, match="Schedule or 'search'"):
         chain_module.full_exact_plan(verbose=False, schedule="hand")
