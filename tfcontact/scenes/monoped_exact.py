@@ -95,6 +95,9 @@ class Schedule:
                                f"{self.flight_time} s: each hop must start after the last "
                                "one landed, the first after t = 0")
 
+    def __str__(self) -> str:
+        return f"lift-offs {', '.join(f'{t:g}' for t in self.lift_offs)} s"
+
 
 HAND_SET_SCHEDULE = Schedule(lift_offs=(0.5, 1.25, 2.0), flight_time=0.26)
 """The schedule of the earlier verified plan (benchmarks/monoped_exact_plan.npz,
@@ -354,8 +357,7 @@ def search_schedule(hop: PolishedPlan, schedules: tuple[Schedule, ...], problem:
     trials = []
     for i, schedule in enumerate(schedules):
         if verbose:  # a candidate takes 1-5 minutes
-            print(f"monoped: schedule {i + 1} of {len(schedules)}, lift-offs "
-                  f"{', '.join(f'{t:g}' for t in schedule.lift_offs)} s", flush=True)
+            print(f"monoped: schedule {i + 1} of {len(schedules)}, {schedule}", flush=True)
         guess, phases = tiled_guess(hop, problem.task, schedule)
         begin = time.perf_counter()
         plan = polish_contact(problem.problem, phases, options, guess=guess, verbose=False)
@@ -402,16 +404,18 @@ def full_exact_plan(verbose: bool = True, schedule: Schedule | str = "search"
     if schedule != "search":
         guess, phases = tiled_guess(reduced.plan, EXACT_TASK, schedule)
         return _chain(levels, phases, guess, steps, start, verbose)
-    best, trials = search_schedule(reduced.plan, uniform_schedules(reduced.plan), bumps,
-                                   options[8], verbose)
-    steps += [_step(f"{levels[0][0]}, lift-offs "
-                    f"{', '.join(f'{t:g}' for t in trial.schedule.lift_offs)} s",
-                    trial.plan, trial.seconds) for trial in trials]
+    # the candidates' re-solve is the chain's first level, which the chosen one replaces
+    first_name, first_problem, first_options = levels[0]
+    best, trials = search_schedule(reduced.plan, uniform_schedules(reduced.plan),
+                                   first_problem, first_options, verbose)
+    steps += [_step(f"{first_name}, {trial.schedule}", trial.plan, trial.seconds)
+              for trial in trials]
     if best is None:
-        return ExactPlan(None, bumps, tuple(steps), float("nan"), time.perf_counter() - start,
+        return ExactPlan(None, first_problem, tuple(steps), float("nan"),
+                         time.perf_counter() - start,
                          message=f"no schedule of {len(trials)} gave a solved re-solve")
     if verbose:
-        print(f"monoped: schedule found, lift-offs {best.schedule.lift_offs} s, flights of "
+        print(f"monoped: schedule found, {best.schedule}, flights of "
               f"{best.schedule.flight_time:.4g} s", flush=True)
     plan = best.plan
     return _chain(levels[1:], plan.phases, (plan.t, plan.x, plan.u), steps, start, verbose)
