@@ -34,6 +34,22 @@ class RobotLoadError(TfcontactError):
     """A robot description could not be found or parsed."""
 
 
+class InvalidRobotModel(RobotLoadError):
+    """A robot description parses but is not a physical rigid-body model.
+
+    Attributes:
+        link: the URDF link at fault.
+        value: the value found (a mass [kg], principal moments [kg m^2], a pivot of M(q)).
+        joint: the model joint that moves `link`, or None when the fault is in the raw URDF.
+    """
+
+    def __init__(self, message: str, *, link: str, value: Any, joint: str | None = None):
+        super().__init__(message)
+        self.link = link
+        self.value = value
+        self.joint = joint
+
+
 class FrameNotFound(TfcontactError, KeyError):
     """A frame name is not in the robot model."""
 

@@ -3,7 +3,10 @@
 `load_robot` is the one entry point of the robot layer. It parses the URDF with
 Pinocchio (kinematic model, collision and visual geometry), puts the requested base
 joint under the root link, locks joints with `pinocchio.buildReducedModel`, builds the
-CasADi twin (`RobotTwin`) and checks the contact frames.
+CasADi twin (`RobotTwin`) and checks the contact frames. Before the twin is built the model
+is checked to be a physical rigid-body system (finite, non-negative masses, realisable
+inertias, M(q) positive definite), so that a bad URDF fails at load with the link to fix
+instead of later as a LinAlgError or a failed solve.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import contextlib
 import os
 import tempfile
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,13 +23,27 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 
-from tfcontact.errors import FrameNotFound, IncompatibleOptions, InvalidInput, RobotLoadError
+from tfcontact.errors import (
+    FrameNotFound,
+    IncompatibleOptions,
+    InvalidInput,
+    InvalidRobotModel,
+    RobotLoadError,
+)
 from tfcontact.robot.contact import ContactTerms, Ground, contact_terms
 from tfcontact.robot.spec import BASES, PLANAR_BASES, ContactSpec, RobotSpec
 from tfcontact.robot.twin import RobotTwin
 
 #: The repository root (relative URDF paths are tried against the cwd, then here).
 REPO_ROOT = Path(__file__).resolve().parents[2]
+
+#: Round-off allowed in the inertia checks, as a fraction of the model's largest moment of
+#: inertia of a body about its frame origin: CAD exports leave residues such as icub's
+#: `r_hip_2` (a point mass) with ixx = iyy = -5.4e-20 kg m^2.
+INERTIA_RTOL = 1e-9
+#: M(q) counts as singular when a Cholesky pivot is below this fraction of its largest
+#: diagonal entry, i.e. a condition number beyond 1e12, past what double precision resolves.
+MASS_MATRIX_RTOL = 1e-12
 
 
 @dataclass(frozen=True)
@@ -149,6 +167,9 @@ def load_robot(
 
     Raises:
         RobotLoadError: missing or malformed URDF, unknown robot name, unsupported joints.
+        InvalidRobotModel: a non-finite or negative mass, an inertia no rigid body has, a
+            joint that moves no mass, or M(q) singular at the neutral configuration; the
+            message names the URDF link to fix.
         IncompatibleOptions: a base the model cannot take.
         InvalidInput: an unknown base name or locked joint.
         FrameNotFound: a contact frame that is not in the model.
@@ -172,12 +193,16 @@ def load_robot(
             "use base='fixed'"
         )
     model, collision, visual = _parse(resolved, spec.base)
+    inertials = _urdf_inertials(resolved.urdf)
     if resolved.armature_srdf is not None:
         pin.loadRotorParameters(model, str(resolved.armature_srdf), False)
         model.armature = np.multiply(model.rotorInertia.flat, np.square(model.rotorGearRatio.flat))
     if spec.locked_joints:
         model, collision, visual = _reduce(model, collision, visual, spec.locked_joints,
                                            spec.locked_positions)
+    # After locking: the bodies that end up in M(q) are the merged ones of the final model.
+    _check_bodies(model, resolved.urdf.name, inertials)
+    _check_mass_matrix(model, resolved.urdf.name)
     twin = RobotTwin(model)
     frames = tuple(f.name for f in model.frames)
     for c in spec.contacts:
@@ -353,3 +378,255 @@ def _reduce(model: pin.Model, collision: pin.GeometryModel, visual: pin.Geometry
         q_ref[model.joints[jid].idx_q] = x
     reduced, (collision, visual) = pin.buildReducedModel(model, [collision, visual], ids, q_ref)
     return reduced, collision, visual
+
+
+@dataclass(frozen=True)
+class _Inertial:
+    """One URDF link's <inertial>: mass [kg], centre of mass [m], inertia about it [kg m^2]."""
+
+    mass: float
+    com: np.ndarray
+    inertia: np.ndarray  # 3 x 3, symmetric by construction (URDF gives six entries)
+
+
+def _urdf_number(text: str | None, what: str, link: str, urdf: str, fix: str) -> np.ndarray:
+    """The numbers of one URDF attribute; InvalidRobotModel when one is not finite."""
+    try:
+        values = np.array([float(x) for x in (text or "").split()], dtype=float)
+    except ValueError:
+        values = np.array([np.nan])
+    if values.size == 0 or not np.all(np.isfinite(values)):
+        raise InvalidRobotModel(
+            f"`{urdf}`: link `{link}` has {what} \"{text}\", not a finite number "
+            f"(urdfdom would drop the whole <inertial> without a word); {fix}",
+            link=link, value=text,
+        )
+    return values
+
+
+def _urdf_inertials(urdf: Path) -> dict[str, _Inertial]:
+    """Read and check every link's <inertial> of the URDF file itself.
+
+    The raw file is read because the parsed model hides two faults: urdfdom drops an
+    <inertial> holding a non-finite number (the link then weighs 0 kg), and Pinocchio merges
+    fixed links into their parent joint's body, where a negative mass or moment can hide
+    behind a positive one. Checked here: finite mass, centre of mass and inertia; mass >= 0
+    (0 is a massless frame, normal in URDFs); no negative principal moment. The triangle
+    inequality is checked on the merged bodies (`_check_bodies`) only: example-robot-data's
+    anymal, hyq and go1 carry 1e-6 kg placeholder links whose inertia (all six entries 1e-6)
+    is rank one, which no rigid body has, but which vanishes in the body it is fixed to.
+
+    Returns:
+        The links that have an <inertial>, by URDF link name.
+    """
+    name = urdf.name
+    found: dict[str, _Inertial] = {}
+    for link in ET.parse(urdf).getroot().iter("link"):
+        inertial = link.find("inertial")
+        if inertial is None:
+            continue
+        lname = link.get("name", "?")
+        mass_el = inertial.find("mass")
+        mass_fix = f"give link `{lname}` a positive <mass value=...> [kg]"
+        mass = 0.0 if mass_el is None else float(_urdf_number(
+            mass_el.get("value"), "<mass> value", lname, name, mass_fix)[0])
+        if mass < 0:
+            raise InvalidRobotModel(
+                f"`{name}`: link `{lname}` has a negative mass {mass:g} kg; {mass_fix}",
+                link=lname, value=mass,
+            )
+        origin = inertial.find("origin")
+        com_fix = f"give link `{lname}` a finite centre of mass <origin xyz=... rpy=...>"
+        com = np.zeros(3)
+        if origin is not None:
+            com = _urdf_number(origin.get("xyz", "0 0 0"), "<inertial><origin> xyz", lname,
+                               name, com_fix)
+            _urdf_number(origin.get("rpy", "0 0 0"), "<inertial><origin> rpy", lname, name,
+                         com_fix)
+        el = inertial.find("inertia")
+        inertia_fix = f"give link `{lname}` a finite <inertia ixx=... izz=...> [kg m^2]"
+        entries = {k: 0.0 if el is None or el.get(k) is None else float(_urdf_number(
+            el.get(k), f"<inertia> {k}", lname, name, inertia_fix)[0])
+            for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+        inertia = np.array([[entries["ixx"], entries["ixy"], entries["ixz"]],
+                            [entries["ixy"], entries["iyy"], entries["iyz"]],
+                            [entries["ixz"], entries["iyz"], entries["izz"]]])
+        found[lname] = _Inertial(mass, com if com.size == 3 else np.zeros(3), inertia)
+    scale = max((float(np.linalg.eigvalsh(i.inertia)[-1]) + i.mass * float(i.com @ i.com)
+                 for i in found.values()), default=0.0)
+    for lname, i in found.items():
+        moments = np.linalg.eigvalsh(i.inertia)
+        if moments[0] < -INERTIA_RTOL * scale:
+            raise InvalidRobotModel(
+                f"`{name}`: link `{lname}` has an inertia matrix with a negative principal "
+                f"moment {moments[0]:.6g} kg m^2 (principal moments "
+                f"{', '.join(f'{m:.6g}' for m in moments)}), which no body has; give link "
+                f"`{lname}` an <inertia> whose principal moments are >= 0 and satisfy "
+                "I1 + I2 >= I3 (e.g. from its CAD model)",
+                link=lname, value=tuple(float(m) for m in moments),
+            )
+    return found
+
+
+def _joint_links(model: pin.Model) -> list[tuple[str, ...]]:
+    """The URDF links each joint moves rigidly: its child link first, then the links fixed
+    to it (Pinocchio merged their inertias into the joint's body)."""
+    links: list[list[str]] = [[] for _ in range(model.njoints)]
+    for frame in model.frames:
+        if frame.type == pin.FrameType.BODY:
+            links[frame.parentJoint].append(frame.name)
+    return [tuple(names) for names in links]
+
+
+def _blame(links: tuple[str, ...], inertials: dict[str, _Inertial], joint: str,
+           faulty: Callable[[_Inertial], bool]) -> str:
+    """The link to name in a message about a joint's merged body: the one whose own
+    <inertial> shows the fault, else the first with an <inertial>, else the child link."""
+    for name in links:
+        if name in inertials and faulty(inertials[name]):
+            return name
+    with_inertial = [n for n in links if n in inertials]
+    return (with_inertial or list(links) or [joint])[0]
+
+
+def _check_bodies(model: pin.Model, urdf: str, inertials: dict[str, _Inertial]) -> None:
+    """Check every body that moves (`model.inertias[j]`, j >= 1) is a physical rigid body.
+
+    The rule (Wensing, Kim and Slotine, "Linear matrix inequalities for physically
+    consistent inertial parameter identification", IEEE RA-L 2018): mass m >= 0; the
+    rotational inertia I about the centre of mass symmetric and positive semidefinite with
+    principal moments obeying the triangle inequality I1 + I2 >= I3 (I1 + I2 - I3 is twice a
+    second moment of the mass distribution, which cannot be negative); a massless body
+    carries no inertia. Point masses and thin rods (a zero moment) are physical, so
+    semidefinite is allowed; M(q)'s definiteness is `_check_mass_matrix`'s concern. Each
+    joint must also move some mass (its own body or one below it: a massless link between
+    two joints, such as the hopper's `hip_link`, is fine), unless a rotor inertia
+    (armature) gives its row of M(q) a diagonal.
+    """
+    links = _joint_links(model)
+    subtree_mass = [sum(model.inertias[k].mass for k in model.subtrees[j])
+                    for j in range(model.njoints)]
+    scale = max((float(np.linalg.eigvalsh(model.inertias[j].inertia)[-1])
+                 + model.inertias[j].mass * float(model.inertias[j].lever
+                                                   @ model.inertias[j].lever)
+                 for j in range(1, model.njoints)
+                 if np.all(np.isfinite(model.inertias[j].inertia))), default=0.0)
+    tol = INERTIA_RTOL * scale
+    for j in range(1, model.njoints):
+        body, joint = model.inertias[j], model.names[j]
+        mass, com, inertia = float(body.mass), np.asarray(body.lever), np.asarray(body.inertia)
+        moved = ", ".join(f"`{n}`" for n in links[j]) or "no link"
+        where = f"the body of joint `{joint}` (links {moved})"
+        if not (np.isfinite(mass) and np.all(np.isfinite(com))
+                and np.all(np.isfinite(inertia))):
+            link = _blame(links[j], inertials, joint, lambda i: False)
+            raise InvalidRobotModel(
+                f"`{urdf}`: {where} has a non-finite mass {mass}, centre of mass {com} or "
+                f"inertia {inertia.tolist()}; give link `{link}` a finite <mass value=...>, "
+                "<origin xyz=...> and <inertia .../>",
+                link=link, value=(mass, com.tolist(), inertia.tolist()), joint=joint,
+            )
+        if mass < 0:
+            link = _blame(links[j], inertials, joint, lambda i: i.mass < 0)
+            raise InvalidRobotModel(
+                f"`{urdf}`: {where} has a negative mass {mass:g} kg; give link `{link}` a "
+                "positive <mass value=...> [kg]",
+                link=link, value=mass, joint=joint,
+            )
+        if mass == 0:
+            if np.max(np.abs(inertia)) > tol:
+                link = _blame(links[j], inertials, joint,
+                              lambda i: i.mass == 0 and bool(np.any(i.inertia)))
+                raise InvalidRobotModel(
+                    f"`{urdf}`: {where} has mass 0 kg but a rotational inertia "
+                    f"{inertia.tolist()} kg m^2, which no body has; give link `{link}` a "
+                    "positive <mass value=...> [kg] or a zero <inertia>",
+                    link=link, value=inertia.tolist(), joint=joint,
+                )
+            continue
+        if np.max(np.abs(inertia - inertia.T)) > tol:  # Pinocchio stores six entries
+            link = _blame(links[j], inertials, joint, lambda i: False)
+            raise InvalidRobotModel(
+                f"`{urdf}`: {where} has a non-symmetric inertia {inertia.tolist()}; fix the "
+                f"<inertia> of link `{link}`",
+                link=link, value=inertia.tolist(), joint=joint,
+            )
+        moments = np.linalg.eigvalsh(inertia)
+        shown = ", ".join(f"{m:.6g}" for m in moments)
+        if moments[0] < -tol:
+            link = _blame(links[j], inertials, joint,
+                          lambda i: np.linalg.eigvalsh(i.inertia)[0] < 0)
+            raise InvalidRobotModel(
+                f"`{urdf}`: {where} has a negative principal moment of inertia "
+                f"{moments[0]:.6g} kg m^2 (principal moments {shown}); give link `{link}` an "
+                "<inertia> whose principal moments are >= 0 and satisfy I1 + I2 >= I3",
+                link=link, value=tuple(float(m) for m in moments), joint=joint,
+            )
+        if moments[0] + moments[1] - moments[2] < -tol:
+            link = _blame(links[j], inertials, joint, _breaks_triangle)
+            raise InvalidRobotModel(
+                f"`{urdf}`: {where} has principal moments of inertia {shown} kg m^2, which "
+                f"break the triangle inequality I1 + I2 >= I3 ({moments[0] + moments[1]:.6g} "
+                f"< {moments[2]:.6g}), so no rigid body has them; give link `{link}` an "
+                "<inertia> that a body of its shape has (e.g. from its CAD model)",
+                link=link, value=tuple(float(m) for m in moments), joint=joint,
+            )
+    # Leaves first, so that the joint named is the last one of a massless chain.
+    for j in reversed(range(1, model.njoints)):
+        joint, idx_v, nvj = model.names[j], model.joints[j].idx_v, model.joints[j].nv
+        if subtree_mass[j] > 0 or np.all(model.armature[idx_v:idx_v + nvj] > 0):
+            continue
+        moved = [n for k in model.subtrees[j] for n in links[k]]
+        link = next((n for n in moved if n in inertials), moved[0] if moved else joint)
+        raise InvalidRobotModel(
+            f"`{urdf}`: joint `{joint}` moves links {', '.join(f'`{n}`' for n in moved)}, "
+            f"whose mass is {subtree_mass[j]:g} kg in all, so M(q) is singular in the row "
+            f"of `{joint}`; give link `{link}` a positive <mass value=...> [kg] and an "
+            "<inertia>, or lock the joint with `locked_joints`",
+            link=link, value=subtree_mass[j], joint=joint,
+        )
+
+
+def _breaks_triangle(i: _Inertial) -> bool:
+    moments = np.linalg.eigvalsh(i.inertia)
+    return bool(moments[0] + moments[1] - moments[2] < -INERTIA_RTOL * max(moments[2], 0.0))
+
+
+def _check_mass_matrix(model: pin.Model, urdf: str) -> None:
+    """Final guard: M(q) positive definite at the neutral configuration.
+
+    The neutral configuration is moved into the joint limits first (the hopper's leg length
+    0 is outside [0.1, 0.5] m), so that the check judges a configuration the robot can take.
+    M(q) is factored by Cholesky in joint order without pivoting: the first pivot
+    D_k = M_kk - L_k,:k L_k,:k^T below MASS_MATRIX_RTOL * max M_ii is the row that depends on
+    the rows before it, i.e. a joint whose motion moves no mass or inertia (a point mass on
+    a revolute axis, say) given the joints above it.
+    """
+    if model.nv == 0:
+        return
+    q = np.clip(pin.neutral(model), model.lowerPositionLimit, model.upperPositionLimit)
+    m = pin.crba(model, model.createData(), q)  # includes the rotor inertias (armature)
+    m = np.triu(m) + np.triu(m, 1).T  # some Pinocchio versions fill the upper triangle only
+    largest = float(np.max(m.diagonal()))
+    chol = np.zeros_like(m)
+    for k in range(model.nv):
+        pivot = float(m[k, k] - chol[k, :k] @ chol[k, :k])
+        if not pivot > MASS_MATRIX_RTOL * largest:  # also catches NaN
+            j = next(j for j in range(1, model.njoints)
+                     if model.joints[j].idx_v <= k < model.joints[j].idx_v + model.joints[j].nv)
+            joint, nvj = model.names[j], model.joints[j].nv
+            coordinate = f" (velocity {k - model.joints[j].idx_v + 1} of {nvj})" if nvj > 1 else ""
+            links = _joint_links(model)[j]
+            link = links[0] if links else joint
+            raise InvalidRobotModel(
+                f"`{urdf}`: the mass matrix M(q) at the neutral configuration is singular in "
+                f"the row of joint `{joint}`{coordinate}, which moves links "
+                f"{', '.join(f'`{n}`' for n in links) or 'none'}: Cholesky pivot {pivot:.3g} "
+                f"against a largest diagonal entry {largest:.3g}; the joint's motion moves no "
+                "mass or inertia (e.g. a point mass on a revolute axis, or massless links): "
+                f"give link `{link}` a mass and an <inertia> that the joint moves, or lock "
+                "the joint with `locked_joints`",
+                link=link, value=pivot, joint=joint,
+            )
+        chol[k, k] = np.sqrt(pivot)
+        chol[k + 1:, k] = (m[k + 1:, k] - chol[k + 1:, :k] @ chol[k, :k]) / chol[k, k]
