@@ -75,3 +75,17 @@ class SolveFailed(TfcontactError):
 
 class TrajectoryFileError(TfcontactError):
     """A trajectory file is damaged, foreign or of an unsupported version."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """A solve was stopped by SIGINT (Ctrl-C) or SIGTERM.
+
+    A `KeyboardInterrupt`, so that no `except Exception` on the way up swallows it; the
+    command line turns it into exit code 130. `signal_number` is the signal that arrived.
+    """
+
+    def __init__(self, signal_number: int):
+        import signal
+
+        self.signal_number = int(signal_number)
+        super().__init__(f"interrupted by {signal.Signals(self.signal_number).name}")

@@ -20,6 +20,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from tfcontact import interrupt
 from tfcontact.errors import InvalidInput, SolveFailed
 from tfcontact.mpcc.derivatives import repeated_block_derivatives
 from tfcontact.mpcc.problem import Mpcc
@@ -308,7 +309,11 @@ class MpccSolver:
             "f": mpcc.f + extra.objective,
             "g": ca.vertcat(mpcc.g, extra.g),
         }
+        # Ends an NLP at the next iteration after Ctrl-C (tfcontact.interrupt); kept here
+        # because CasADi holds only a borrowed reference.
+        self._stop_on_signal = interrupt.StopOnSignal()
         options = self.nlp.casadi_options()
+        options["iteration_callback"] = self._stop_on_signal
         if self.nlp.element_derivatives and mpcc.repeated:
             options.update(repeated_block_derivatives(
                 nlp_dict["x"], nlp_dict["p"], nlp_dict["f"], nlp_dict["g"], mpcc.repeated,
@@ -319,6 +324,7 @@ class MpccSolver:
             # The same NLP with looser stopping tests; it reuses the first solver's
             # derivative functions, so it costs no second symbolic differentiation.
             options = self.nlp.casadi_options(intermediate=True)
+            options["iteration_callback"] = self._stop_on_signal
             for option, name in (("hess_lag", "nlp_hess_l"), ("jac_g", "nlp_jac_g"),
                                  ("grad_f", "nlp_grad_f")):
                 if self._solver.has_function(name):  # no Hessian with a quasi-Newton one
@@ -362,8 +368,9 @@ class MpccSolver:
         violation there."""
         solver = self._intermediate_solver if intermediate else self._solver
         start = time.perf_counter()
-        sol = solver(x0=x, p=np.concatenate([p, [sigma]]), lbx=self._lbx, ubx=self._ubx,
-                     lbg=self._lbg, ubg=self._ubg)
+        with interrupt.guard():  # Ctrl-C stops IPOPT and the homotopy (tfcontact.interrupt)
+            sol = solver(x0=x, p=np.concatenate([p, [sigma]]), lbx=self._lbx, ubx=self._ubx,
+                         lbg=self._lbg, ubg=self._ubg)
         seconds = time.perf_counter() - start
         stats = solver.stats()
         x_new = np.asarray(sol["x"]).reshape(-1)

@@ -48,6 +48,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from tfcontact import interrupt
 from tfcontact.errors import InvalidInput, TfcontactError, positive_int
 from tfcontact.fesd.tableau import RadauIIA
 from tfcontact.ocp.contact import (
@@ -705,7 +706,7 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     for c in options.cone_margins:
         opti.set_value(margin, c)
         try:
-            with blas_threads(options.blas_threads):
+            with interrupt.guard(), blas_threads(options.blas_threads):
                 sol = opti.solve()
         except RuntimeError:
             sol = opti.debug

@@ -1,0 +1,127 @@
+"""Ctrl-C inside IPOPT: turn the signal into an exception instead of a failed NLP.
+
+CasADi's IPOPT wrapper polls Python's signal handlers between iterations; when a handler
+raises, it ends the solve with the status `NonIpopt_Exception_Thrown` and returns
+normally, so the homotopy would treat Ctrl-C as a failed NLP and go on (measured: one
+SIGINT 10 s into `tfcontact plan hopper` ran 70 s more and exited 0). `guard()` wraps each
+long native call: its handler records the signal and raises (so IPOPT stops within an
+iteration), and on leaving the block `Interrupted` is raised for the recorded signal.
+
+
+CasADi may also meet the handler's exception inside a function evaluation, where it is
+swallowed and IPOPT goes on (measured: the hopper's NLP then ran its remaining 4 s);
+`StopOnSignal` is an IPOPT iteration callback that ends the NLP at the next iteration once
+a signal was recorded, whatever happened to the exception.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from types import FrameType
+
+import casadi as ca
+
+from tfcontact.errors import Interrupted
+
+# The signal recorded by the innermost active `guard()` (None: none), read by StopOnSignal.
+_pending: list[int] = []
+
+
+class _Caught:
+    """The signal recorded inside a `guard()` block (None: none arrived)."""
+
+    def __init__(self) -> None:
+        self.signal_number: int | None = None
+
+
+def _guarded_signals() -> list[signal.Signals]:
+    # SIGTERM only where the program chose to handle it (the command line does): a
+    # library call must not change what SIGTERM does to a user's process.
+    chosen = [signal.SIGINT]
+    if callable(signal.getsignal(signal.SIGTERM)):
+        chosen.append(signal.SIGTERM)
+    return chosen
+
+
+@contextmanager
+def guard() -> Iterator[_Caught]:
+    """Run a native call so that SIGINT (and SIGTERM where handled) stops it.
+
+    Raises:
+        Interrupted: a signal arrived inside the block (also when the native call caught
+            the handler's exception and returned).
+    """
+    caught = _Caught()
+    if threading.current_thread() is not threading.main_thread():
+        # Signals reach only the main thread; handlers cannot be set from another one.
+        yield caught
+        return
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        caught.signal_number = signum
+        _pending.append(signum)
+        raise Interrupted(signum)
+
+    _pending.clear()
+    previous = {s: signal.signal(s, handler) for s in _guarded_signals()}
+    try:
+        yield caught
+    except Interrupted:
+        raise
+    except BaseException as error:
+        # A native call may turn the handler's exception into its own error (CasADi's
+        # Opti raises RuntimeError for the failed solve): the signal still wins.
+        if caught.signal_number is None and not isinstance(error, KeyboardInterrupt):
+            raise
+        raise Interrupted(caught.signal_number or signal.SIGINT) from error
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+        _pending.clear()
+    if caught.signal_number is not None:
+        raise Interrupted(caught.signal_number)
+
+
+class StopOnSignal(ca.Callback):
+    """IPOPT's `iteration_callback`: stop the NLP once a `guard()` recorded a signal.
+
+    Keep a reference to the object for as long as the solver that uses it lives (CasADi
+    holds only a borrowed one).
+    """
+
+    def __init__(self) -> None:
+        ca.Callback.__init__(self)
+        self.construct("stop_on_signal", {})
+
+    def get_n_in(self) -> int:
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self) -> int:
+        return 1
+
+    def get_name_in(self, i: int) -> str:
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i: int) -> str:
+        return "stop"
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:
+        # Any shape: the callback reads nothing of the iterate.
+        return ca.Sparsity.dense(0, 0)
+
+    def eval(self, arg: list) -> list:
+        return [1 if _pending else 0]
+
+
+def raise_on_sigterm() -> None:
+    """Make SIGTERM stop the program as Ctrl-C does (an `Interrupted` exception), so that
+    a terminated plan cleans up like an interrupted one. For command-line entry points."""
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        raise Interrupted(signum)
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, handler)
