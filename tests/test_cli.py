@@ -37,19 +37,21 @@ def test_monoped_plan_is_tf9_from_the_urdf():
 
 
 def test_monoped_refuses_attempts(capsys, tmp_path):
-    assert main(["plan", "monoped", "--attempts", "2", "--out", str(tmp_path), "--quiet"]) == 1
+    assert main(["plan", "monoped", "--attempts", "2", "--out", str(tmp_path), "--quiet"]) == 2
     assert "plan `monoped` has no attempts to set" in capsys.readouterr().err
 
 
 def test_unknown_plan_and_task_are_named(capsys, tmp_path):
     assert main(["plan", "walker", "--out", str(tmp_path)]) == 2
     assert "unknown plan `walker`; available: hopper, monoped" in capsys.readouterr().err
-    assert main(["plan", "hopper", "--task", "sprint", "--out", str(tmp_path)]) == 1
+    assert main(["plan", "hopper", "--task", "sprint", "--out", str(tmp_path)]) == 2
     assert "plan `hopper` has no task `sprint`; tasks: short, long" in capsys.readouterr().err
 
 
 def test_bad_attempts_are_refused_before_solving(capsys, tmp_path):
-    assert main(["plan", "hopper", "--attempts", "0", "--out", str(tmp_path), "--quiet"]) == 1
-    err = capsys.readouterr().err
-    assert "`attempts` must be a positive integer, got 0" in err
-    assert not (tmp_path / "trajectory.npz").exists()
+    out = tmp_path / "new"
+    with pytest.raises(SystemExit) as exit_:
+        main(["plan", "hopper", "--attempts", "0", "--out", str(out), "--quiet"])
+    assert exit_.value.code == 2
+    assert "--attempts must be a positive int, got '0'" in capsys.readouterr().err
+    assert not out.exists()

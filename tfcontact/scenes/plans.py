@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from tfcontact.errors import InvalidInput
+from tfcontact.errors import InvalidInput, positive_int
 
 
 @dataclass(frozen=True)
@@ -141,14 +141,19 @@ PLANS: dict[str, Plan] = {
 
 
 def run_plan(name: str, out_dir: Path | str, *, task: str | None = None,
-             attempts: int | None = None, verbose: bool = True) -> PlanReport:
+             attempts: int | None = None, verbose: bool = True,
+             force: bool = False) -> PlanReport:
     """Solve the plan `name`, verify it and write trajectory, figures and replay to out_dir.
 
     `attempts` overrides the plan's number of solves (`ContactSolverOptions.attempts`).
-    Files are written whatever the outcome (a failed plan's last iterate is saved with its
-    status), so that no output is lost.
+    The arguments and the output folder are checked before any solving
+    (`OutputFolder.check`: a folder that already holds files is replaced only with
+    `force`). The files are written into a staging folder and moved into place at once,
+    whatever the outcome (a failed plan's last iterate is saved with its status); an
+    interrupt (`tfcontact.errors.Interrupted`) leaves `out_dir` as it was.
     """
     from tfcontact.ocp.contact import solve_contact
+    from tfcontact.scenes.output import OutputFolder
     from tfcontact.viz.plan import trajectory_from_result
 
     if name not in PLANS:
@@ -156,31 +161,48 @@ def run_plan(name: str, out_dir: Path | str, *, task: str | None = None,
     plan = PLANS[name]
     if task is not None and task not in plan.tasks:
         raise InvalidInput(f"plan `{name}` has no task `{task}`; tasks: {', '.join(plan.tasks)}")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    start = time.perf_counter()
-    if plan.solve is not None:
-        if attempts is not None:
+    if attempts is not None:
+        if plan.solve is not None:
             raise InvalidInput(f"plan `{name}` has no attempts to set (its chain restarts "
                                "itself)")
-        return _write_outcome(name, task or plan.tasks[0], out, start,
-                              plan.solve(task or plan.tasks[0], out, verbose), verbose)
-    setup = plan.build(task)
-    robot, problem, options = setup.robot, setup.problem, setup.options
-    if attempts is not None:
-        options = dataclasses.replace(options, attempts=attempts)
+        positive_int(attempts, "attempts")
+    task = task or plan.tasks[0]
+    folder = OutputFolder(Path(out_dir), force=force)
+    folder.check()
+    start = time.perf_counter()
+    with folder.staging() as stage:
+        if plan.solve is not None:
+            outcome = plan.solve(task, stage, verbose)
+        else:
+            setup = plan.build(task)
+            robot, problem, options = setup.robot, setup.problem, setup.options
+            if attempts is not None:
+                options = dataclasses.replace(options, attempts=attempts)
+            if verbose:
+                print(f"plan {name} ({task}): {robot.model.name}, nq = {robot.nq}, "
+                      f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
+            result = solve_contact(problem, options, verbose=verbose)
+            trajectory = trajectory_from_result(result, robot.spec, setup.scene)
+            outcome = PlanOutcome(trajectory, robot, result.status, result.success,
+                                  result.summary())
+        files = _write_outcome(name, task, stage, start, outcome)
+    files = [folder.final_path(f, stage) for f in files]
     if verbose:
-        print(f"plan {name} ({task or plan.tasks[0]}): {robot.model.name}, nq = {robot.nq}, "
-              f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
-    result = solve_contact(problem, options, verbose=verbose)
-    trajectory = trajectory_from_result(result, robot.spec, setup.scene)
-    outcome = PlanOutcome(trajectory, robot, result.status, result.success, result.summary())
-    return _write_outcome(name, task or plan.tasks[0], out, start, outcome, verbose)
+        print(f"wrote {len(files)} files to {folder.target}/:")
+        for f in files:
+            print(f"  {f}")
+        if outcome.trajectory is not None:
+            print(f"replay: open {folder.target / 'replay.html'} in a browser (or "
+                  f"`tfcontact replay {folder.target / 'trajectory.npz'}`)")
+        print(f"plan {name} ({task}): {outcome.status}")
+    return PlanReport(name=name, success=outcome.success, status=outcome.status,
+                      out_dir=folder.target, files=tuple(files), summary=outcome.summary)
 
 
-def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanOutcome,
-                   verbose: bool) -> PlanReport:
-    """Write the trajectory, figures, replay and summary.json of a solved (or failed) plan."""
+def _write_outcome(name: str, task: str, out: Path, start: float,
+                   outcome: PlanOutcome) -> list[Path]:
+    """Write the trajectory, figures, replay and summary.json of a solved (or failed) plan
+    into `out`; returns the paths written."""
     from tfcontact.viz import plot_trajectory, replay, save_trajectory
 
     files = list(outcome.files)
@@ -194,12 +216,4 @@ def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanO
         "success": outcome.success, "wall_time": time.perf_counter() - start,
         "summary": outcome.summary}, indent=2))
     files.append(out / "summary.json")
-    if verbose:
-        print(f"wrote {len(files)} files to {out}/:")
-        for f in files:
-            print(f"  {f}")
-        if outcome.trajectory is not None:
-            print(f"replay: open {page.html} in a browser (or `tfcontact replay {npz}`)")
-        print(f"plan {name} ({task}): {outcome.status}")
-    return PlanReport(name=name, success=outcome.success, status=outcome.status, out_dir=out,
-                      files=tuple(Path(f) for f in files), summary=outcome.summary)
+    return [Path(f) for f in files]

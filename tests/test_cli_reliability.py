@@ -1,0 +1,199 @@
+"""The command line under interrupts, bad folders and bad flags: through the real
+`tfcontact` program in a subprocess where signals or permissions are the point."""
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import casadi as ca
+import pytest
+
+from tfcontact import interrupt
+from tfcontact.cli import EXIT_CODES, main
+from tfcontact.errors import Interrupted, InvalidInput
+from tfcontact.scenes.output import OutputFolder
+
+TFCONTACT = [sys.executable, "-m", "tfcontact.cli"]
+
+
+def _start_plan(out: Path, *extra: str) -> subprocess.Popen:
+    return subprocess.Popen([*TFCONTACT, "plan", "hopper", "--out", str(out), *extra],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for_ipopt(process: subprocess.Popen, timeout: float = 120.0) -> list[str]:
+    """Read the plan's progress until the first NLP has finished (IPOPT is then running
+    the second one); the lines read so far."""
+    lines = []
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        line = process.stdout.readline()
+        if not line:
+            break
+        lines.append(line)
+        if "Solve_Succeeded" in line or "Solved_To_Acceptable" in line:
+            return lines
+    process.kill()
+    pytest.fail("the plan printed no solved NLP: " + "".join(lines))
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_inside_ipopt_stops_the_plan_and_keeps_the_old_one(tmp_path, signum):
+    """Before: one SIGINT 10 s into `plan hopper` ran 70 s more, exited 0 and replaced the
+    folder's plan. Now the plan stops within 2 s, exits 130, and with --force given the
+    earlier plan in the folder is untouched and no staging folder is left."""
+    out = tmp_path / "hop"
+    out.mkdir()
+    (out / "summary.json").write_text("earlier plan")
+    process = _start_plan(out, "--force")
+    _wait_for_ipopt(process)
+    sent = time.monotonic()
+    process.send_signal(signum)
+    _, err = process.communicate(timeout=60)
+    stopped = time.monotonic() - sent
+    assert process.returncode == 130, err
+    assert stopped < 2.0
+    assert signal.Signals(signum).name in err and "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["hop"]
+    assert [p.name for p in out.iterdir()] == ["summary.json"]
+    assert (out / "summary.json").read_text() == "earlier plan"
+
+
+def _slow_nlp() -> ca.Function:
+    """An infeasible NLP that IPOPT works on for tens of seconds."""
+    n = 20000
+    x = ca.SX.sym("x", n)
+    f = ca.sum1((x[1:] - x[:-1] ** 2) ** 2) + ca.sum1((1 - x) ** 2)
+    g = ca.vertcat(ca.sum1(x ** 2) + 1, ca.sin(x[:-1]) * ca.cos(x[1:]))
+    return ca.nlpsol("slow", "ipopt", {"x": x, "f": f, "g": g},
+                     {"ipopt": {"print_level": 0, "sb": "yes", "max_iter": 100000},
+                      "print_time": False, "error_on_fail": False})
+
+
+def test_guard_turns_ctrl_c_inside_ipopt_into_interrupted():
+    """Without the guard CasADi ends the NLP with NonIpopt_Exception_Thrown and returns as
+    if IPOPT had failed; inside it the same SIGINT raises `Interrupted` within an
+    iteration, and the process's own SIGINT handler is back afterwards."""
+    solver = _slow_nlp()
+    before = signal.getsignal(signal.SIGINT)
+    timer = threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    start = time.monotonic()
+    with pytest.raises(Interrupted) as caught, interrupt.guard():
+        solver(x0=0.5, lbg=0, ubg=ca.vertcat(0, 0.1 * ca.DM.ones(19999)))
+    timer.join()
+    assert time.monotonic() - start < 3.0
+    assert caught.value.signal_number == signal.SIGINT
+    assert isinstance(caught.value, KeyboardInterrupt)
+    assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_guard_leaves_other_errors_alone():
+    with pytest.raises(ValueError, match="not a signal"), interrupt.guard():
+        raise ValueError("not a signal")
+
+
+def _run(*args: str, without_root_override: bool = False) -> subprocess.CompletedProcess:
+    """Run `tfcontact ARGS`; `without_root_override`: as root, drop the capabilities that
+    let root write into folders without write permission (setpriv, util-linux)."""
+    prefix = []
+    if without_root_override and os.geteuid() == 0:
+        prefix = ["setpriv", "--bounding-set", "-dac_override,-dac_read_search", "--"]
+    return subprocess.run([*prefix, *TFCONTACT, *args], capture_output=True, text=True,
+                          timeout=120)
+
+
+def _one_line_error(result: subprocess.CompletedProcess, *phrases: str) -> None:
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, result.stderr
+    for phrase in phrases:
+        assert phrase in lines[0]
+
+
+def test_read_only_output_folder_is_refused_before_solving(tmp_path):
+    """Before: the whole solve ran, then a PermissionError traceback lost the plan. The
+    check runs without root's power to write anywhere."""
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o555)
+    start = time.monotonic()
+    for out in (locked, locked / "hop"):
+        result = _run("plan", "hopper", "--out", str(out), without_root_override=True)
+        _one_line_error(result, str(out), "not writable", "--out")
+    assert time.monotonic() - start < 60  # nothing was solved
+    assert list(locked.iterdir()) == []
+
+
+def test_output_path_that_is_a_file_is_named(tmp_path):
+    afile = tmp_path / "notes.txt"
+    afile.write_text("x")
+    _one_line_error(_run("plan", "hopper", "--out", str(afile)), "is a file", "--out")
+    _one_line_error(_run("plan", "hopper", "--out", str(afile / "hop")),
+                    "lies below the file", str(afile))
+
+
+def test_existing_plan_is_not_replaced_without_force(tmp_path, capsys):
+    (tmp_path / "trajectory.npz").write_text("earlier plan")
+    assert main(["plan", "hopper", "--out", str(tmp_path), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "already holds files" in err and "--force" in err
+    assert (tmp_path / "trajectory.npz").read_text() == "earlier plan"
+
+
+def test_flag_values_are_usage_errors(tmp_path, capsys):
+    out = tmp_path / "new"
+    for argv in (["plan", "hopper", "--attempts", "0", "--out", str(out)],
+                 ["replay", "x.npz", "--speed", "0"], ["replay", "x.npz", "--fps", "-1"],
+                 ["replay", "x.npz", "--fps", "nan"]):
+        with pytest.raises(SystemExit) as exit_:
+            main(argv)
+        assert exit_.value.code == 2
+        assert "must be a positive" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_exit_codes_are_documented(capsys):
+    with pytest.raises(SystemExit):
+        main(["plan", "--help"])
+    text = capsys.readouterr().out
+    for code in EXIT_CODES:
+        assert f"  {code} " in text.replace("\n", " \n")
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    assert "130" in readme and "--force" in readme
+
+
+def test_debug_shows_the_traceback(tmp_path):
+    afile = tmp_path / "notes.txt"
+    afile.write_text("x")
+    result = _run("--debug", "plan", "hopper", "--out", str(afile))
+    assert result.returncode != 0 and "Traceback" in result.stderr
+
+
+def test_output_folder_replaces_only_when_forced(tmp_path):
+    target = tmp_path / "plan"
+    target.mkdir()
+    (target / "old.txt").write_text("old")
+    with pytest.raises(InvalidInput, match="already holds files"):
+        OutputFolder(target).check()
+    with OutputFolder(target, force=True).staging() as stage:
+        (stage / "new.txt").write_text("new")
+        assert (target / "old.txt").exists()  # nothing moves before the plan is written
+    assert [p.name for p in target.iterdir()] == ["new.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plan"]
+
+
+def test_output_folder_is_untouched_when_writing_fails(tmp_path):
+    target = tmp_path / "plan"
+    target.mkdir()
+    (target / "old.txt").write_text("old")
+    with pytest.raises(KeyboardInterrupt), OutputFolder(target, force=True).staging() as st:
+        (st / "half.txt").write_text("half")
+        raise KeyboardInterrupt
+    assert [p.name for p in target.iterdir()] == ["old.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plan"]
