@@ -134,7 +134,7 @@ def test_wrong_format_version(saved):
     meta["format_version"] = 99
     sidecar.write_text(json.dumps(meta))
     with pytest.raises(TrajectoryFileError, match="format_version 99; this tfcontact reads "
-                       f"version {FORMAT_VERSION} only"):
+                       f"versions 1, {FORMAT_VERSION} only"):
         load_trajectory(sidecar)
 
 

@@ -6,7 +6,7 @@ an auxiliary impact mode is active. `Trajectory` keeps every sample in numerical
 together with the clock; `physical_time` gives the samples in physical time, frozen
 pieces dropped, so that an impact becomes an instantaneous jump of the velocity.
 
-File layout (format version 1), `NAME.npz` + `NAME.json`:
+File layout (format version 2), `NAME.npz` + `NAME.json`:
 
 * `NAME.npz` (numpy, no pickles), one row per sample k = 0..N-1 in numerical time:
 
@@ -30,13 +30,34 @@ File layout (format version 1), `NAME.npz` + `NAME.json`:
   `extra_<name>`      (N, ...)      optional solver-specific arrays (e.g. step variables)
   ==================  ============  ============================================================
 
-* `NAME.json`: `format` = "tfcontact-trajectory", `format_version`, `status`,
-  `dimensions` (N, nq, nv, nu, nc), `npz_sha256` (ties the pair together), `arrays`
-  (units and meaning), `robot` (`source`: URDF path relative to the repository or an
-  example-robot-data name; `base`; `locked_joints`; `contacts`: frame names and radii),
-  `scene` (terrain, optional boxes and holes), `solver` (settings, timings, NLP count, iterations,
-  complementarity residual, optional `history`: one entry per homotopy step) and
-  `verification` (independent checks of the plan).
+  Every array is float64 except `t_index` (int64) and the extras (any numeric dtype);
+  all but the extras are finite.
+
+* `NAME.json`, the sidecar:
+
+  - `format` = "tfcontact-trajectory", `format_version` (2), `status` (the solver's word),
+    `dimensions` (N, nq, nv, nu, nc), `frozen_rate_tol` (the clock rate dt/dtau [-] at
+    or below which `t` / `t_index` count an interval as frozen);
+  - integrity: `npz_sha256` (SHA-256 of the npz file: ties the pair together), `arrays`
+    (per array: `meaning` with units, `shape`, `dtype` and `sha256` = SHA-256 of the
+    array's bytes in C order) and `sidecar_sha256` (SHA-256 of the sidecar itself: the
+    JSON of every other key with sorted keys, separators "," and ":", ASCII only);
+  - `robot`: how tfcontact rebuilds the robot (`source`: URDF path, a name of the
+    repository's `robots/` or an example-robot-data name; `base`; `locked_joints`;
+    `contacts`: frame names and radii; `locked_positions`), i.e. `RobotSpec.to_dict()`;
+  - `model`: the robot without the repository (optional, filled by
+    `tfcontact.viz.plan`): `urdf` (`locate`: "project" = `robots/NAME.urdf` of tfcontact,
+    "example-robot-data" = that package's robot NAME, or "path"; `name`; `sha256` of the
+    URDF's bytes), `base` and `base_meaning`, `gravity` [m/s^2], and the lists
+    `coordinates` (nq), `velocities` (nv) and `controls` (nu) of `{"name", "unit"}`
+    entries (units m, rad, m/s, rad/s, N, N m) naming their joint; each control also
+    lists the velocity entries it `drives` with its gain;
+  - `scene` (terrain, optional boxes and holes), `task` (free: what the plan was asked),
+    `solver` (settings, timings, NLP count, iterations, complementarity residual,
+    optional `history`: one entry per homotopy step) and `verification` (independent
+    checks of the plan).
+
+  Format version 1 (no `arrays` digests, `model`, `task` or `sidecar_sha256`) still loads.
 
 A script of one's own reads the pair with numpy and json alone::
 
@@ -45,9 +66,15 @@ A script of one's own reads the pair with numpy and json alone::
     arrays = np.load("plan.npz")
     t, q_phys = arrays["t"], arrays["q"][arrays["t_index"]]
 
-`scripts/check_trajectory.py` goes further without importing tfcontact: it rebuilds the
-robot from `meta["robot"]` with plain Pinocchio and checks the gaps and the momentum
-balance of every impact.
+`scripts/check_trajectory.py` goes further without importing tfcontact: it verifies the
+checksums, rebuilds the robot from `meta["robot"]` with plain Pinocchio and checks the
+gaps and the momentum balance of every impact.
+
+`load_trajectory` refuses every damaged pair with a `TrajectoryFileError` naming the file,
+the problem and the fix: the checksums catch changed bytes, and the content is checked
+on its own (shapes, dtypes, finiteness, monotone tau and clock, `t` / `t_index` against
+the clock, the sidecar's dimensions and descriptions against the arrays) so that a
+damaged file whose checksum was recomputed is refused as well.
 """
 
 from __future__ import annotations
@@ -55,10 +82,14 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import lzma
 import math
 import os
+import re
+import struct
 import tempfile
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -68,7 +99,10 @@ import numpy as np
 from tfcontact.errors import InvalidInput, TrajectoryFileError
 
 FORMAT = "tfcontact-trajectory"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+
+#: Format versions `load_trajectory` reads (version 1: no digests, `model` or `task`).
+READABLE_VERSIONS = (1, 2)
 
 #: Default tolerance on the clock rate dt/dtau below which an interval counts as frozen.
 FROZEN_RATE_TOL = 1e-6
@@ -90,10 +124,23 @@ ARRAY_DOCS: dict[str, str] = {
 }
 
 _METADATA = ("robot", "scene", "solver", "verification")
+#: Metadata dicts of format version 2 on top of version 1's.
+_METADATA_V2 = ("model", "task")
 
 #: Keys a saved trajectory's `robot` entry must have: enough to rebuild the robot with
 #: plain Pinocchio (`tfcontact.robot.RobotSpec.to_dict()` gives them).
 ROBOT_KEYS = ("source", "base", "locked_joints", "contacts")
+
+#: Units of the `model` entries: coordinates, velocities and controls (`-`: unknown joint).
+MODEL_UNITS = {
+    "coordinates": ("m", "rad", "-"),
+    "velocities": ("m/s", "rad/s", "-"),
+    "controls": ("N", "N m", "-"),
+}
+#: How the `model["urdf"]` entry says where its URDF is.
+URDF_LOCATIONS = ("project", "example-robot-data", "path")
+
+_SHA256 = re.compile(r"[0-9a-f]{64}")
 
 
 def _missing_robot_keys(robot: dict) -> list[str]:
@@ -122,10 +169,15 @@ class Trajectory:
         status: the solver's status word, e.g. "success".
         robot, scene, solver, verification: free-form dicts with the documented keys.
         extras: further arrays of shape (N, ...), saved as `extra_<name>`.
+        model: the robot described without the repository (URDF digest, base, gravity,
+            coordinate, velocity and control names with units); empty or as documented.
+        task: what the plan was asked (free form; empty by default).
+        frozen_rate_tol: clock rate dt/dtau [-] at or below which an interval counts as
+            frozen (`physical_time`'s default for this trajectory).
 
     Raises:
-        InvalidInput: an array has the wrong shape or non-finite values, or a dict does
-            not serialise to JSON.
+        InvalidInput: an array has the wrong shape or non-finite values, a dict does
+            not serialise to JSON, or `model` disagrees with the arrays.
     """
 
     tau: np.ndarray
@@ -144,6 +196,9 @@ class Trajectory:
     solver: dict[str, Any] = field(default_factory=dict)
     verification: dict[str, Any] = field(default_factory=dict)
     extras: dict[str, np.ndarray] = field(default_factory=dict)
+    model: dict[str, Any] = field(default_factory=dict)
+    task: dict[str, Any] = field(default_factory=dict)
+    frozen_rate_tol: float = FROZEN_RATE_TOL
 
     def __post_init__(self):
         arrays = {name: getattr(self, name) for name in _REQUIRED}
@@ -153,7 +208,7 @@ class Trajectory:
             arrays[name] = (
                 np.zeros((n, n_contacts, 3)) if getattr(self, name) is None else getattr(self, name)
             )
-        checked = _check_arrays(arrays, InvalidInput, "")
+        checked = _check_arrays(arrays)
         for name, value in checked.items():
             object.__setattr__(self, name, value)
         extras = {}
@@ -166,12 +221,14 @@ class Trajectory:
                     f"`extras[{name!r}]` must have one row per sample ({self.n_samples}), "
                     f"got shape {value.shape}"
                 )
+            if value.dtype.hasobject:
+                raise InvalidInput(f"`extras[{name!r}]` must be numeric, got dtype object")
             value.setflags(write=False)
             extras[name] = value
         object.__setattr__(self, "extras", extras)
         if not isinstance(self.status, str):
             raise InvalidInput(f"`status` must be a string, got {self.status!r}")
-        for name in _METADATA:
+        for name in (*_METADATA, *_METADATA_V2):
             value = getattr(self, name)
             if not isinstance(value, dict):
                 raise InvalidInput(f"`{name}` must be a dict, got {type(value).__name__}")
@@ -188,6 +245,10 @@ class Trajectory:
                 f"`robot['contacts']` lists {len(contacts)} contacts but `gap` has "
                 f"{self.n_contacts} columns"
             )
+        _check_model(self.model, {"coordinates": ("q", self.q.shape[1]),
+                                  "velocities": ("v", self.v.shape[1]),
+                                  "controls": ("u", self.u.shape[1])})
+        object.__setattr__(self, "frozen_rate_tol", _rate_tol(self.frozen_rate_tol))
 
     @property
     def n_samples(self) -> int:
@@ -199,61 +260,109 @@ class Trajectory:
         """Number of contacts nc."""
         return self.gap.shape[1]
 
-    def physical(self, *, rate_tol: float = FROZEN_RATE_TOL) -> PhysicalSamples:
+    def physical(self, *, rate_tol: float | None = None) -> PhysicalSamples:
         """The samples in physical time; see `physical_time`."""
         return physical_time(self, rate_tol=rate_tol)
 
 
 _REQUIRED = ("tau", "clock", "s", "q", "v", "u", "gap", "normal_velocity")
 _ALL_ARRAYS = (*_REQUIRED, "force", "impulse")
+_N_DIMS = {"tau": 1, "clock": 1, "s": 1, "q": 2, "v": 2, "u": 2, "gap": 2,
+           "normal_velocity": 2, "force": 3, "impulse": 3}
 
 
-def _check_arrays(arrays: dict[str, Any], error: type[Exception], where: str) -> dict:
+def _rate_tol(value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating) \
+            or not (math.isfinite(value) and value >= 0):
+        raise InvalidInput(f"`rate_tol` must be finite and >= 0, got {value!r}")
+    return float(value)
+
+
+def _check_arrays(arrays: dict[str, Any]) -> dict[str, np.ndarray]:
     """Convert to float arrays and check shapes, finiteness and monotone times."""
     out: dict[str, np.ndarray] = {}
     for name in _ALL_ARRAYS:
         try:
             value = np.array(arrays[name], dtype=float)
         except (TypeError, ValueError) as err:
-            raise error(f"{where}`{name}` is not a numeric array: {err}") from err
+            raise InvalidInput(f"`{name}` is not a numeric array: {err}") from err
         out[name] = value
-    n_dims = {"tau": 1, "clock": 1, "s": 1, "q": 2, "v": 2, "u": 2, "gap": 2,
-              "normal_velocity": 2, "force": 3, "impulse": 3}
-    for name, ndim in n_dims.items():
+    for name, ndim in _N_DIMS.items():
         if out[name].ndim != ndim:
-            raise error(
-                f"{where}`{name}` must be {ndim}-D (one row per sample), "
-                f"got shape {out[name].shape}"
+            raise InvalidInput(
+                f"`{name}` must be {ndim}-D (one row per sample), got shape {out[name].shape}"
             )
     n = out["tau"].shape[0]
     if n < 2:
-        raise error(f"{where}`tau` must hold at least 2 samples, got {n}")
+        raise InvalidInput(f"`tau` must hold at least 2 samples, got {n}")
     for name in _ALL_ARRAYS:
         if out[name].shape[0] != n:
-            raise error(
-                f"{where}`{name}` has {out[name].shape[0]} rows but `tau` has {n} samples: "
+            raise InvalidInput(
+                f"`{name}` has {out[name].shape[0]} rows but `tau` has {n} samples: "
                 "every array needs one row per sample"
             )
         if not np.all(np.isfinite(out[name])):
-            raise error(f"{where}`{name}` holds non-finite values (nan or inf)")
+            raise InvalidInput(f"`{name}` holds non-finite values (nan or inf)")
     nc = out["gap"].shape[1]
     for name, shape in (("normal_velocity", (n, nc)), ("force", (n, nc, 3)),
                         ("impulse", (n, nc, 3))):
         if out[name].shape != shape:
-            raise error(
-                f"{where}`{name}` must have shape {shape} (nc = {nc} from `gap`), "
-                f"got {out[name].shape}"
+            raise InvalidInput(
+                f"`{name}` must have shape {shape} (nc = {nc} from `gap`), got {out[name].shape}"
             )
     for name in ("tau", "clock"):
         if np.any(np.diff(out[name]) < 0):
             k = int(np.argmax(np.diff(out[name]) < 0))
-            raise error(
-                f"{where}`{name}` must be non-decreasing, but it drops from "
+            raise InvalidInput(
+                f"`{name}` must be non-decreasing, but it drops from "
                 f"{out[name][k]!r} to {out[name][k + 1]!r} at sample {k + 1}"
             )
     for value in out.values():
         value.setflags(write=False)
     return out
+
+
+def _check_model(model: dict[str, Any], sizes: dict[str, tuple[str, int]]) -> None:
+    """`model` is empty or describes the arrays (see the module docstring)."""
+    if not model:
+        return
+    missing = [k for k in ("urdf", "base", "base_meaning", "gravity", *MODEL_UNITS)
+               if k not in model]
+    if missing:
+        raise InvalidInput(f"`model` lacks {', '.join(missing)}")
+    urdf = model["urdf"]
+    if (not isinstance(urdf, dict) or urdf.get("locate") not in URDF_LOCATIONS
+            or not isinstance(urdf.get("name"), str)
+            or not _SHA256.fullmatch(str(urdf.get("sha256")))):
+        raise InvalidInput(
+            "`model['urdf']` must be {\"locate\": one of " + ", ".join(URDF_LOCATIONS)
+            + ", \"name\": str, \"sha256\": 64 hex digits}" + f", got {urdf!r}"
+        )
+    if not isinstance(model["base"], str) or not isinstance(model["base_meaning"], str):
+        raise InvalidInput("`model['base']` and `model['base_meaning']` must be strings")
+    gravity = model["gravity"]
+    if (not isinstance(gravity, list) or len(gravity) != 3
+            or not all(isinstance(g, int | float) and not isinstance(g, bool)
+                       and math.isfinite(g) for g in gravity)):
+        raise InvalidInput(f"`model['gravity']` must be 3 finite numbers [m/s^2], got {gravity!r}")
+    for key, units in MODEL_UNITS.items():
+        entries, (array, size) = model[key], sizes[key]
+        if not isinstance(entries, list) or len(entries) != size:
+            count = len(entries) if isinstance(entries, list) else type(entries).__name__
+            raise InvalidInput(
+                f"`model['{key}']` must list one entry per column of `{array}` ({size}), "
+                f"got {count}"
+            )
+        for entry in entries:
+            if (not isinstance(entry, dict) or not isinstance(entry.get("name"), str)
+                    or not isinstance(entry.get("joint"), str) or entry.get("unit") not in units):
+                raise InvalidInput(
+                    f"`model['{key}']` entries must be {{\"name\": str, \"joint\": str, "
+                    f"\"unit\": one of {', '.join(units)}}}, got {entry!r}"
+                )
+            if key == "controls" and not isinstance(entry.get("drives"), list):
+                raise InvalidInput(f"`model['controls']` entries need `drives` (a list), "
+                                   f"got {entry!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -271,6 +380,7 @@ class PhysicalSamples:
         q, v, u, gap, normal_velocity, force: the trajectory's arrays at `index`.
         frozen: the frozen pieces as (tau_start, tau_end) pairs [s] in numerical time.
         impacts: the physical times [s] of the frozen pieces.
+        frozen_index: the frozen pieces as (entry, exit) sample indices.
     """
 
     t: np.ndarray
@@ -283,44 +393,54 @@ class PhysicalSamples:
     force: np.ndarray
     frozen: tuple[tuple[float, float], ...]
     impacts: tuple[float, ...]
+    frozen_index: tuple[tuple[int, int], ...] = ()
 
 
-def frozen_intervals(traj: Trajectory, *, rate_tol: float = FROZEN_RATE_TOL) -> np.ndarray:
+def frozen_intervals(traj: Trajectory, *, rate_tol: float | None = None) -> np.ndarray:
     """Which sampling intervals [tau_k, tau_k+1] are frozen: dt/dtau <= `rate_tol`.
 
     Args:
         traj: the trajectory.
-        rate_tol: clock rate [-] at or below which the clock counts as stopped.
+        rate_tol: clock rate [-] at or below which the clock counts as stopped; default
+            `traj.frozen_rate_tol`.
 
     Returns:
         Boolean array of shape (N - 1,). A zero-length interval (tau_k+1 = tau_k, e.g. a
         repeated element boundary) counts as frozen exactly when the clock does not move.
     """
-    if not (math.isfinite(rate_tol) and rate_tol >= 0):
-        raise InvalidInput(f"`rate_tol` must be finite and >= 0, got {rate_tol!r}")
-    dt = np.diff(traj.clock)
-    dtau = np.diff(traj.tau)
-    return dt <= rate_tol * dtau
+    tol = traj.frozen_rate_tol if rate_tol is None else _rate_tol(rate_tol)
+    return _frozen(traj.tau, traj.clock, tol)
 
 
-def physical_time(traj: Trajectory, *, rate_tol: float = FROZEN_RATE_TOL) -> PhysicalSamples:
+def _frozen(tau: np.ndarray, clock: np.ndarray, rate_tol: float) -> np.ndarray:
+    return np.diff(clock) <= rate_tol * np.diff(tau)
+
+
+def _kept_samples(frozen: np.ndarray) -> np.ndarray:
+    """Indices of the samples in physical time: those next to a running interval, and
+    the first and last."""
+    keep = np.zeros(frozen.size + 1, dtype=bool)
+    keep[0] = keep[-1] = True
+    running = ~frozen
+    keep[1:] |= running  # the interval into sample k advances the clock
+    keep[:-1] |= running  # the interval out of sample k advances the clock
+    return np.flatnonzero(keep)
+
+
+def physical_time(traj: Trajectory, *, rate_tol: float | None = None) -> PhysicalSamples:
     """The physical trajectory x(tau) against t(tau), frozen pieces dropped (DESIGN.md 4.1).
 
     Args:
         traj: the trajectory in numerical time.
-        rate_tol: clock rate dt/dtau [-] at or below which an interval counts as frozen.
+        rate_tol: clock rate dt/dtau [-] at or below which an interval counts as frozen;
+            default `traj.frozen_rate_tol`.
 
     Returns:
         The kept samples (see `PhysicalSamples`).
     """
     frozen = frozen_intervals(traj, rate_tol=rate_tol)
-    running = ~frozen
+    index = _kept_samples(frozen)
     n = traj.n_samples
-    keep = np.zeros(n, dtype=bool)
-    keep[0] = keep[-1] = True
-    keep[1:] |= running  # the interval into sample k advances the clock
-    keep[:-1] |= running  # the interval out of sample k advances the clock
-    index = np.flatnonzero(keep)
     pieces = []
     k = 0
     while k < n - 1:
@@ -328,10 +448,10 @@ def physical_time(traj: Trajectory, *, rate_tol: float = FROZEN_RATE_TOL) -> Phy
             start = k
             while k < n - 1 and frozen[k]:
                 k += 1
-            pieces.append((float(traj.tau[start]), float(traj.tau[k])))
+            pieces.append((start, k))
         else:
             k += 1
-    impacts = tuple(float(np.interp(a, traj.tau, traj.clock)) for a, _ in pieces)
+    impacts = tuple(float(np.interp(traj.tau[a], traj.tau, traj.clock)) for a, _ in pieces)
     return PhysicalSamples(
         t=traj.clock[index],
         index=index,
@@ -341,12 +461,26 @@ def physical_time(traj: Trajectory, *, rate_tol: float = FROZEN_RATE_TOL) -> Phy
         gap=traj.gap[index],
         normal_velocity=traj.normal_velocity[index],
         force=traj.force[index],
-        frozen=tuple(pieces),
+        frozen=tuple((float(traj.tau[a]), float(traj.tau[b])) for a, b in pieces),
         impacts=impacts,
+        frozen_index=tuple(pieces),
     )
 
 
 # ----------------------------------------------------------------------------- files
+
+#: The fix named by every message about a damaged pair.
+RESTORE = ("restore the pair NAME.npz + NAME.json from a backup, or re-run the plan that "
+           "wrote it")
+
+#: Exceptions the zip and npy readers raise on damaged bytes: a flipped flag bit asks for
+#: a password (RuntimeError) or another compression method (NotImplementedError, or the
+#: lzma / bz2 errors), a damaged stream fails in zlib, a damaged npy header in its parser.
+_DAMAGED_NPZ = (zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error, lzma.LZMAError,
+                EOFError, OSError, RuntimeError, NotImplementedError, ValueError, KeyError,
+                IndexError, OverflowError, struct.error, TypeError, MemoryError)
+
+_ARRAY_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
 def sidecar_path(path: str | os.PathLike) -> tuple[Path, Path]:
@@ -355,6 +489,21 @@ def sidecar_path(path: str | os.PathLike) -> tuple[Path, Path]:
     if path.suffix in (".npz", ".json"):
         path = path.with_suffix("")
     return path.with_name(path.name + ".npz"), path.with_name(path.name + ".json")
+
+
+def array_sha256(value: np.ndarray) -> str:
+    """SHA-256 of an array's bytes in C order (the sidecar's `arrays[name]["sha256"]`);
+    its shape and dtype are recorded next to it."""
+    return hashlib.sha256(np.ascontiguousarray(value).tobytes()).hexdigest()
+
+
+def sidecar_sha256(meta: dict[str, Any]) -> str:
+    """SHA-256 of a sidecar's content (its `sidecar_sha256`): the JSON of every other key
+    with sorted keys, separators "," and ":", ASCII only, so whitespace does not count."""
+    body = {key: value for key, value in meta.items() if key != "sidecar_sha256"}
+    text = json.dumps(body, sort_keys=True, separators=(",", ":"), ensure_ascii=True,
+                      allow_nan=False)
+    return hashlib.sha256(text.encode("ascii")).hexdigest()
 
 
 def _atomic_write(path: Path, data: bytes) -> None:
@@ -376,7 +525,7 @@ def _atomic_write(path: Path, data: bytes) -> None:
 
 
 def save_trajectory(path: str | os.PathLike, traj: Trajectory, *,
-                    rate_tol: float = FROZEN_RATE_TOL) -> tuple[Path, Path]:
+                    rate_tol: float | None = None) -> tuple[Path, Path]:
     """Write `traj` as `NAME.npz` + `NAME.json` (see the module docstring for the format).
 
     Both files are written to temporary files first and renamed into place, the npz
@@ -386,7 +535,8 @@ def save_trajectory(path: str | os.PathLike, traj: Trajectory, *,
     Args:
         path: `NAME`, `NAME.npz` or `NAME.json`; the folder must exist.
         traj: the trajectory.
-        rate_tol: clock-rate tolerance used for the stored `t` / `t_index`.
+        rate_tol: clock-rate tolerance used for the stored `t` / `t_index`; default
+            `traj.frozen_rate_tol`. It is stored as the sidecar's `frozen_rate_tol`.
 
     Returns:
         The paths (npz, json) written.
@@ -399,6 +549,7 @@ def save_trajectory(path: str | os.PathLike, traj: Trajectory, *,
             f"`traj.robot` lacks {', '.join(missing)}: a saved trajectory must say how to "
             f"rebuild its robot ({', '.join(ROBOT_KEYS)}; `RobotSpec.to_dict()` gives them)"
         )
+    rate_tol = traj.frozen_rate_tol if rate_tol is None else _rate_tol(rate_tol)
     npz_path, json_path = sidecar_path(path)
     if not npz_path.parent.is_dir():
         raise InvalidInput(f"`path`: folder {str(npz_path.parent)!r} does not exist")
@@ -411,6 +562,7 @@ def save_trajectory(path: str | os.PathLike, traj: Trajectory, *,
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **arrays)
     data = buffer.getvalue()
+    docs = {**ARRAY_DOCS, **{"extra_" + k: "solver-specific" for k in traj.extras}}
     meta = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
@@ -422,12 +574,17 @@ def save_trajectory(path: str | os.PathLike, traj: Trajectory, *,
         "npz_file": npz_path.name,
         "npz_sha256": hashlib.sha256(data).hexdigest(),
         "frozen_rate_tol": rate_tol,
-        "arrays": {**ARRAY_DOCS, **{"extra_" + k: "solver-specific" for k in traj.extras}},
+        "arrays": {name: {"meaning": docs[name], "shape": list(value.shape),
+                          "dtype": np.asarray(value).dtype.str, "sha256": array_sha256(value)}
+                   for name, value in arrays.items()},
         "robot": traj.robot,
+        "model": traj.model,
         "scene": traj.scene,
+        "task": traj.task,
         "solver": traj.solver,
         "verification": traj.verification,
     }
+    meta["sidecar_sha256"] = sidecar_sha256(meta)
     text = json.dumps(meta, indent=2, allow_nan=False) + "\n"
     _atomic_write(npz_path, data)
     _atomic_write(json_path, text.encode("utf-8"))
@@ -435,88 +592,217 @@ def save_trajectory(path: str | os.PathLike, traj: Trajectory, *,
 
 
 def load_trajectory(path: str | os.PathLike) -> Trajectory:
-    """Read a trajectory written by `save_trajectory`, checking it thoroughly.
+    """Read a trajectory written by `save_trajectory` (format version 1 or 2), checking it.
+
+    The checks, in order: both files exist; the sidecar is a JSON object of this format
+    and a readable version with every key of the right type; the npz matches the
+    sidecar's `npz_sha256` and is a readable zip of npy arrays (each member's CRC-32
+    checked); the arrays have the documented names, dtypes and shapes, are finite,
+    tau and the clock never decrease, `t` / `t_index` are the physical samples of the
+    clock, and the sidecar's dimensions and `model` agree with them; finally (version 2)
+    each array matches its recorded shape, dtype and SHA-256, and the sidecar its own
+    `sidecar_sha256`.
 
     Args:
         path: `NAME`, `NAME.npz` or `NAME.json`.
 
     Returns:
-        The trajectory.
+        The trajectory (for version 1 files `model` and `task` are empty).
 
     Raises:
-        TrajectoryFileError: a file is missing, damaged (truncated, not npz/JSON), foreign
-            (not a tfcontact trajectory), of another format version, or its arrays have
-            missing entries or inconsistent shapes. The message names the file and the
-            problem.
+        TrajectoryFileError: a file is missing, damaged (truncated, changed, not npz/JSON),
+            foreign (not a tfcontact trajectory) or of an unknown format version. The
+            message names the file, the problem and the fix.
     """
     npz_path, json_path = sidecar_path(path)
     for p in (npz_path, json_path):
         if not p.is_file():
             raise TrajectoryFileError(
                 f"{str(p)!r} does not exist: a trajectory is the pair {npz_path.name} + "
-                f"{json_path.name}, written by tfcontact.viz.save_trajectory"
+                f"{json_path.name}, written by tfcontact.viz.save_trajectory; "
+                f"{RESTORE}"
             )
-    try:
-        meta = json.loads(json_path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise TrajectoryFileError(f"{str(json_path)!r} is not valid JSON: {err}") from err
-    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
-        raise TrajectoryFileError(
-            f"{str(json_path)!r} is not a tfcontact trajectory sidecar "
-            f"(expected \"format\": \"{FORMAT}\")"
-        )
-    version = meta.get("format_version")
-    if version != FORMAT_VERSION:
-        raise TrajectoryFileError(
-            f"{str(json_path)!r} has format_version {version!r}; this tfcontact reads "
-            f"version {FORMAT_VERSION} only"
-        )
-    for key in ("status", "dimensions", "npz_sha256", *_METADATA):
-        if key not in meta:
-            raise TrajectoryFileError(f"{str(json_path)!r} lacks the key `{key}`")
-    if not isinstance(meta["robot"], dict) or _missing_robot_keys(meta["robot"]):
-        raise TrajectoryFileError(
-            f"{str(json_path)!r}: `robot` must be an object with the keys "
-            f"{', '.join(ROBOT_KEYS)}"
-        )
-    data = npz_path.read_bytes()
+    meta = _read_sidecar(json_path)
+    data = _read_bytes(npz_path)
     if hashlib.sha256(data).hexdigest() != meta["npz_sha256"]:
         raise TrajectoryFileError(
             f"{str(npz_path)!r} does not match its sidecar {json_path.name} (checksum "
-            "differs): the npz was modified, truncated or belongs to another save"
+            f"differs): the npz was modified, truncated or belongs to another save; {RESTORE}"
         )
+    arrays = _read_npz(npz_path, data)
+    traj = _trajectory(meta, arrays, npz_path)
+    if meta["format_version"] >= 2:
+        _check_digests(meta, arrays, npz_path, json_path)
+    return traj
+
+
+def _read_bytes(path: Path) -> bytes:
     try:
-        with np.load(io.BytesIO(data), allow_pickle=False) as npz:
-            arrays = {name: npz[name] for name in npz.files}
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as err:
-        raise TrajectoryFileError(f"{str(npz_path)!r} is not a readable npz file: {err}") from err
+        return path.read_bytes()
+    except OSError as err:
+        raise TrajectoryFileError(f"{str(path)!r} cannot be read: {err}; {RESTORE}") from err
+
+
+def _no_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a finite number")
+
+
+def _read_sidecar(json_path: Path) -> dict[str, Any]:
+    """The sidecar's JSON object, checked for format, version and the type of each key."""
+    try:
+        meta = json.loads(_read_bytes(json_path).decode("utf-8"), parse_constant=_no_constant)
+    except (UnicodeDecodeError, ValueError) as err:  # JSONDecodeError is a ValueError
+        raise TrajectoryFileError(
+            f"{str(json_path)!r} is not valid JSON: {err}; {RESTORE}") from err
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise TrajectoryFileError(
+            f"{str(json_path)!r} is not a tfcontact trajectory sidecar "
+            f"(expected \"format\": \"{FORMAT}\"): pass the NAME.json written by "
+            "tfcontact.viz.save_trajectory"
+        )
+    version = meta.get("format_version")
+    if isinstance(version, bool) or version not in READABLE_VERSIONS:
+        raise TrajectoryFileError(
+            f"{str(json_path)!r} has format_version {version!r}; this tfcontact reads "
+            f"versions {', '.join(map(str, READABLE_VERSIONS))} only: read it with the "
+            f"tfcontact that wrote it, or re-run the plan with this one"
+        )
+    dicts = (*_METADATA, "dimensions") + ((*_METADATA_V2, "arrays") if version >= 2 else ())
+    keys = ("status", "npz_sha256", *dicts) + (
+        ("frozen_rate_tol", "sidecar_sha256") if version >= 2 else ())
+    for key in keys:
+        if key not in meta:
+            raise TrajectoryFileError(f"{str(json_path)!r} lacks the key `{key}`; {RESTORE}")
+    problems = [f"`{key}` must be an object" for key in dicts if not isinstance(meta[key], dict)]
+    if not isinstance(meta["status"], str):
+        problems.append("`status` must be a string")
+    for key in ("npz_sha256", "sidecar_sha256"):
+        if key in keys and not (isinstance(meta[key], str) and _SHA256.fullmatch(meta[key])):
+            problems.append(f"`{key}` must be 64 hexadecimal digits")
+    try:
+        _rate_tol(meta.get("frozen_rate_tol", FROZEN_RATE_TOL))
+    except InvalidInput:
+        problems.append("`frozen_rate_tol` must be a finite number >= 0")
+    if problems:
+        raise TrajectoryFileError(f"{str(json_path)!r}: {'; '.join(problems)}; {RESTORE}")
+    if _missing_robot_keys(meta["robot"]):
+        raise TrajectoryFileError(
+            f"{str(json_path)!r}: `robot` must be an object with the keys "
+            f"{', '.join(ROBOT_KEYS)}; {RESTORE}"
+        )
+    return meta
+
+
+def _read_npz(npz_path: Path, data: bytes) -> dict[str, np.ndarray]:
+    """The arrays of the npz bytes; any damage becomes a TrajectoryFileError."""
+    arrays: dict[str, np.ndarray] = {}
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as archive:
+            for info in archive.infolist():
+                name = info.filename[:-4]
+                if (not info.filename.endswith(".npy") or not _ARRAY_NAME.fullmatch(name)
+                        or name in arrays):
+                    raise TrajectoryFileError(
+                        f"{str(npz_path)!r} is not a readable npz file: unexpected member "
+                        f"{info.filename!r}; {RESTORE}")
+                arrays[name] = _parse_npy(npz_path, name, archive.read(info))
+    except _DAMAGED_NPZ as err:
+        raise TrajectoryFileError(
+            f"{str(npz_path)!r} is not a readable npz file: {type(err).__name__}: {err}; "
+            f"{RESTORE}") from err
+    return arrays
+
+
+def _parse_npy(npz_path: Path, name: str, raw: bytes) -> np.ndarray:
+    """One npy member, its size checked against its header before anything is allocated."""
+    buffer = io.BytesIO(raw)
+    version = np.lib.format.read_magic(buffer)
+    if version == (1, 0):
+        shape, fortran, dtype = np.lib.format.read_array_header_1_0(buffer)
+    elif version == (2, 0):
+        shape, fortran, dtype = np.lib.format.read_array_header_2_0(buffer)
+    else:
+        raise TrajectoryFileError(
+            f"{str(npz_path)!r} is not a readable npz file: `{name}` has npy version "
+            f"{version}; {RESTORE}")
+    count = math.prod(shape)
+    offset = buffer.tell()
+    if dtype.hasobject or dtype.itemsize == 0 or len(raw) - offset != count * dtype.itemsize:
+        raise TrajectoryFileError(
+            f"{str(npz_path)!r} is not a readable npz file: `{name}` holds "
+            f"{len(raw) - offset} bytes of data, its header announces {shape} of {dtype}; "
+            f"{RESTORE}")
+    value = np.frombuffer(raw, dtype=dtype, count=count, offset=offset)
+    value = value.reshape(shape[::-1]).T if fortran else value.reshape(shape)
+    return np.ascontiguousarray(value)
+
+
+def _trajectory(meta: dict[str, Any], arrays: dict[str, np.ndarray],
+                npz_path: Path) -> Trajectory:
+    """The trajectory of checked arrays and sidecar; content problems are file errors."""
+    where = str(npz_path)
     missing = [name for name in (*_ALL_ARRAYS, "t", "t_index") if name not in arrays]
     if missing:
+        raise TrajectoryFileError(f"{where!r} lacks the arrays {', '.join(missing)}; {RESTORE}")
+    unknown = [name for name in arrays if name not in (*_ALL_ARRAYS, "t", "t_index")
+               and not (name.startswith("extra_") and name[len("extra_"):].isidentifier())]
+    if unknown:
         raise TrajectoryFileError(
-            f"{str(npz_path)!r} lacks the arrays {', '.join(missing)}"
-        )
-    where = f"{npz_path.name}: "
-    checked = _check_arrays(arrays, TrajectoryFileError, where)
-    dims = meta["dimensions"]
-    found = {"N": checked["tau"].shape[0], "nq": checked["q"].shape[1],
-             "nv": checked["v"].shape[1], "nu": checked["u"].shape[1],
-             "nc": checked["gap"].shape[1]}
-    if dims != found:
+            f"{where!r} holds arrays this format does not have: {', '.join(unknown)}; {RESTORE}")
+    wrong = [f"`{name}` is {arrays[name].dtype}" for name in (*_ALL_ARRAYS, "t")
+             if arrays[name].dtype != np.float64]
+    if not np.issubdtype(arrays["t_index"].dtype, np.integer):
+        wrong.append(f"`t_index` is {arrays['t_index'].dtype}")
+    if wrong:
         raise TrajectoryFileError(
-            f"{where}array shapes {found} differ from the sidecar's dimensions {dims}"
-        )
-    t, t_index = arrays["t"], arrays["t_index"]
-    if (t.ndim != 1 or t_index.shape != t.shape or not np.issubdtype(t_index.dtype, np.integer)
-            or np.any(t_index < 0) or np.any(t_index >= found["N"])
-            or not np.array_equal(t, checked["clock"][t_index])):
-        raise TrajectoryFileError(f"{where}`t` / `t_index` do not match `clock`")
+            f"{where!r}: wrong dtype ({', '.join(wrong)}; expected float64, and an integer "
+            f"`t_index`); {RESTORE}")
     extras = {name[len("extra_"):]: value for name, value in arrays.items()
               if name.startswith("extra_")}
     try:
-        return Trajectory(
-            **checked, status=meta["status"],
-            **{key: meta[key] for key in _METADATA}, extras=extras,
+        traj = Trajectory(
+            **{name: arrays[name] for name in _ALL_ARRAYS}, status=meta["status"],
+            **{key: meta[key] for key in _METADATA},
+            **{key: meta.get(key, {}) for key in _METADATA_V2},
+            extras=extras, frozen_rate_tol=meta.get("frozen_rate_tol", FROZEN_RATE_TOL),
         )
     except InvalidInput as err:
-        raise TrajectoryFileError(f"{str(json_path)!r}: {err}") from err
+        raise TrajectoryFileError(f"{where!r}: {err}; {RESTORE}") from err
+    found = {"N": traj.n_samples, "nq": traj.q.shape[1], "nv": traj.v.shape[1],
+             "nu": traj.u.shape[1], "nc": traj.n_contacts}
+    dims = meta["dimensions"]
+    if dims != found or any(isinstance(x, bool) for x in dims.values()):
+        raise TrajectoryFileError(
+            f"{where!r}: array shapes {found} differ from the sidecar's dimensions {dims}; "
+            f"{RESTORE}")
+    t, t_index = arrays["t"], arrays["t_index"]
+    expected = _kept_samples(_frozen(traj.tau, traj.clock, traj.frozen_rate_tol))
+    if (t_index.shape != expected.shape or not np.array_equal(t_index, expected)
+            or t.shape != expected.shape or not np.array_equal(t, traj.clock[expected])):
+        raise TrajectoryFileError(
+            f"{where!r}: `t` / `t_index` are not the physical samples of `clock` (frozen "
+            f"rate {traj.frozen_rate_tol:g}); {RESTORE}")
+    return traj
 
+
+def _check_digests(meta: dict[str, Any], arrays: dict[str, np.ndarray], npz_path: Path,
+                   json_path: Path) -> None:
+    """Each array as its sidecar records it (shape, dtype, SHA-256); the sidecar as its
+    own `sidecar_sha256` records it."""
+    listed = meta["arrays"]
+    if set(listed) != set(arrays):
+        raise TrajectoryFileError(
+            f"{str(npz_path)!r} holds the arrays {sorted(arrays)} but its sidecar lists "
+            f"{sorted(listed)}; {RESTORE}")
+    for name, value in arrays.items():
+        entry = listed[name]
+        if (not isinstance(entry, dict) or entry.get("shape") != list(value.shape)
+                or entry.get("dtype") != value.dtype.str
+                or entry.get("sha256") != array_sha256(value)):
+            raise TrajectoryFileError(
+                f"{str(npz_path)!r}: `{name}` is not the array its sidecar records (shape, "
+                f"dtype or SHA-256 differ): its content was changed after the save; {RESTORE}")
+    if sidecar_sha256(meta) != meta["sidecar_sha256"]:
+        raise TrajectoryFileError(
+            f"{str(json_path)!r} was edited or damaged: its content does not match its "
+            f"`sidecar_sha256`; {RESTORE}")
