@@ -4,10 +4,10 @@
   trajectory format (see `tfcontact.viz.trajectory`).
 * `replay`: live meshcat viewer or standalone HTML, in physical time.
 * `plot_trajectory`: matplotlib figures (PNG and SVG).
-* `cli_replay`: the `tfcontact replay` subcommand.
+* `cli_replay`, `cli_check`: the `tfcontact replay` and `tfcontact check` subcommands.
 """
 
-from tfcontact.viz.cli import cli_replay
+from tfcontact.viz.cli import cli_check, cli_replay
 from tfcontact.viz.figures import plot_trajectory
 from tfcontact.viz.meshcat_replay import ReplayResult, replay
 from tfcontact.viz.trajectory import (
@@ -25,6 +25,7 @@ __all__ = [
     "PhysicalSamples",
     "ReplayResult",
     "Trajectory",
+    "cli_check",
     "cli_replay",
     "frozen_intervals",
     "load_trajectory",

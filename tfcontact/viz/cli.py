@@ -1,12 +1,15 @@
-"""`tfcontact replay TRAJECTORY [--html OUT] [--open] [--speed S]`: the viz side of the CLI."""
+"""The viz side of the CLI: `tfcontact replay TRAJECTORY [--html OUT] [--open] [--speed S]`
+and `tfcontact check TRAJECTORY`."""
 
 from __future__ import annotations
 
 import argparse
 import signal
+import sys
 import time
 import webbrowser
 
+from tfcontact.errors import TrajectoryFileError
 from tfcontact.viz.meshcat_replay import replay
 from tfcontact.viz.trajectory import load_trajectory
 
@@ -63,3 +66,36 @@ def cli_replay(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, previous)
         result.close()
     return 0
+
+
+def cli_check(args: argparse.Namespace) -> int:
+    """Run `tfcontact check TRAJECTORY`: is the file intact, and does the plan hold?
+
+    Loading checks the file (checksums, format version, content: `load_trajectory`);
+    `tfcontact.viz.plan.check_plan` then checks the physics from the recorded data and
+    prints one line per check: status and verification, clock, gaps, the rebuilt robot,
+    forward-kinematics gaps and the impacts (frozen pieces, recorded impulses, touchdowns
+    inside a sampling interval) with their momentum balance.
+
+    Args (attributes of `args`):
+        trajectory: path of `NAME.npz` or `NAME.json`.
+        penetration, tol: optional tolerances [m] and [-] (`CheckTolerances.penetration`,
+            `CheckTolerances.model`; defaults 1e-3 and 1e-6).
+
+    Returns:
+        0 if the file is intact and every check passes, 1 if a physics check fails, 2 if
+        the file is missing, damaged or foreign (one line on stderr names the problem).
+    """
+    from tfcontact.viz.plan import CheckTolerances, check_plan
+
+    try:
+        traj = load_trajectory(args.trajectory)
+    except TrajectoryFileError as err:
+        print(f"damaged: {err}", file=sys.stderr)
+        return 2
+    tolerances = CheckTolerances(
+        penetration=float(getattr(args, "penetration", None) or 1e-3),
+        model=float(getattr(args, "tol", None) or 1e-6))
+    result = check_plan(traj, tolerances=tolerances)
+    print(result)
+    return 0 if result.passed else 1
