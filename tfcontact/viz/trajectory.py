@@ -631,7 +631,8 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
         )
     arrays = _read_npz(npz_path, data)
     traj = _trajectory(meta, arrays, npz_path)
-    if meta["format_version"] >= 2:
+    # a version-2 sidecar whose version was edited to 1 keeps its digests: check them
+    if meta["format_version"] >= 2 or "sidecar_sha256" in meta:
         _check_digests(meta, arrays, npz_path, json_path)
     return traj
 
@@ -667,7 +668,8 @@ def _read_sidecar(json_path: Path) -> dict[str, Any]:
             f"versions {', '.join(map(str, READABLE_VERSIONS))} only: read it with the "
             f"tfcontact that wrote it, or re-run the plan with this one"
         )
-    dicts = (*_METADATA, "dimensions") + ((*_METADATA_V2, "arrays") if version >= 2 else ())
+    digests = version >= 2 or "sidecar_sha256" in meta
+    dicts = (*_METADATA, "dimensions") + ((*_METADATA_V2, "arrays") if digests else ())
     keys = ("status", "npz_sha256", *dicts) + (
         ("frozen_rate_tol", "sidecar_sha256") if version >= 2 else ())
     for key in keys:
@@ -677,7 +679,7 @@ def _read_sidecar(json_path: Path) -> dict[str, Any]:
     if not isinstance(meta["status"], str):
         problems.append("`status` must be a string")
     for key in ("npz_sha256", "sidecar_sha256"):
-        if key in keys and not (isinstance(meta[key], str) and _SHA256.fullmatch(meta[key])):
+        if key in meta and not (isinstance(meta[key], str) and _SHA256.fullmatch(meta[key])):
             problems.append(f"`{key}` must be 64 hexadecimal digits")
     try:
         _rate_tol(meta.get("frozen_rate_tol", FROZEN_RATE_TOL))
