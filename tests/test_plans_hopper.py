@@ -20,6 +20,10 @@ def hopper_plan(tmp_path_factory):
     return code, out
 
 
+def sidecar_end_x(out):
+    return float(load_trajectory(out / "trajectory.npz").q[-1, 0])
+
+
 def test_plan_command_writes_every_file_and_an_honest_status(hopper_plan):
     code, out = hopper_plan
     for name in ("trajectory.npz", "trajectory.json", "replay.html", "summary.json",
@@ -33,6 +37,13 @@ def test_plan_command_writes_every_file_and_an_honest_status(hopper_plan):
     assert summary["success"] == (code == 0)
     assert summary["success"] == (sidecar["verification"]["passed"]
                                   and sidecar["status"] == "converged")
+    # Physical is not enough: the task's goals are measured and reported beside it.
+    checks = {c["name"]: c for c in summary["task_checks"]["checks"]}
+    assert set(checks) == {"end x", "lift-offs contact 0", "motion"}
+    assert summary["success"] == (sidecar["verification"]["passed"]
+                                  and summary["task_checks"]["passed"])
+    assert checks["end x"]["value"] == pytest.approx(
+        abs(sidecar_end_x(out) - hopper_task("short").x_end[0]), abs=1e-9)
     # Every solve is on record (up to 3: a failed plan is solved again from a perturbed
     # guess); the plan is the last, and only the last may have succeeded.
     attempts = sidecar["solver"]["attempts"]

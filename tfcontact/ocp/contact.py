@@ -32,6 +32,7 @@ from tfcontact.errors import InvalidInput, SolveFailed, TfcontactError, positive
 from tfcontact.fesd import Fesd, RadauIIA, Scheme, simulate
 from tfcontact.fesd.tableau import as_tableau
 from tfcontact.mpcc import Homotopy, Ipopt, MpccStatus, Relaxation, Scholtes
+from tfcontact.ocp.goals import Goal, Motion, TaskReport, check_goals
 from tfcontact.ocp.problem import Constraint, OptimalControlProblem
 from tfcontact.ocp.solve import OcpResult, Transcription, solve
 from tfcontact.ocp.verify import (
@@ -92,6 +93,12 @@ class ContactProblem:
         guess: initial guess of (q, v) at the N + 1 interval boundaries, shape
             (N + 1, 2 n_q) (e.g. a tracking reference); the clock's guess is then k T / N.
             Default: the start state everywhere (no contact schedule).
+        control_guess: initial guess of the physical controls, (n_u,) or (N, n_u);
+            default zero (clipped to the bounds).
+        goals: the task (`tfcontact.ocp.goals`: `EndPosition`, `Progress`, `Clearance`,
+            `Moves`): checked on the plan's physical motion after the solve; a plan that
+            misses one is not a success (status "goal_missed" or "no_motion"). Default
+            none: only the physical checks are made, and the summary says so.
     """
 
     system: TimeFreezingSystem
@@ -113,6 +120,8 @@ class ContactProblem:
     path: Constraint | None = None
     terminal: Constraint | None = None
     guess: np.ndarray | None = None
+    control_guess: np.ndarray | None = None
+    goals: tuple[Goal, ...] = ()
 
     def __post_init__(self) -> None:
         tf = self.system
@@ -161,6 +170,22 @@ class ContactProblem:
                     f"`guess` must be a finite array of (q, v) at the interval boundaries, "
                     f"shape {shape}, got shape {guess.shape}")
             object.__setattr__(self, "guess", guess)
+        if self.control_guess is not None:
+            control = np.asarray(self.control_guess, dtype=float)
+            if control.shape == (n_u,):
+                control = np.tile(control, (self.n_intervals, 1))
+            if control.shape != (self.n_intervals, n_u) or not np.all(np.isfinite(control)):
+                raise InvalidInput(
+                    f"`control_guess` must be a finite array of shape ({n_u},) or "
+                    f"(N, n_u) = ({self.n_intervals}, {n_u}), got shape {control.shape}")
+            object.__setattr__(self, "control_guess", control)
+        goals = tuple(self.goals)
+        for goal in goals:
+            if not isinstance(goal, Goal):
+                raise InvalidInput(f"`goals` must hold Goal objects (EndPosition, Progress, "
+                                   f"Clearance, Moves), got {type(goal).__name__}")
+            goal.validate(tf.cls.q_names, tf.cls.n_contacts)
+        object.__setattr__(self, "goals", goals)
 
     @property
     def tau_horizon(self) -> float:
@@ -279,6 +304,7 @@ class ContactResult:
             attempts.
         options: the `ContactSolverOptions` it was solved with.
         attempts: every solve, this plan's last (more than one after failed plans).
+        task: the problem's goals measured on the physical plan (`TaskReport`).
     """
 
     problem: ContactProblem
@@ -293,19 +319,21 @@ class ContactResult:
     timings: dict[str, float]
     options: ContactSolverOptions | None = None
     attempts: tuple[Attempt, ...] = ()
+    task: TaskReport = field(default_factory=lambda: TaskReport(()))
 
     @property
     def success(self) -> bool:
-        """Converged and passed the independent checks."""
-        return self.ocp.success and self.verification.passed
+        """Converged, passed the independent checks and met the task's goals."""
+        return self.ocp.success and self.verification.passed and self.task.passed
 
     @property
     def status(self) -> str:
-        return _status(self.ocp, self.verification)
+        return _status(self.ocp, self.verification, self.task)
 
     @property
     def message(self) -> str:
-        return f"{self.ocp.message}; {self.verification.summary()}"
+        return (f"{self.ocp.message}; {self.verification.summary()}; "
+                f"{self.task.summary().splitlines()[0]}")
 
     def summary(self) -> str:
         """A few lines for a terminal: status, objective, work, residual, time, checks."""
@@ -328,14 +356,25 @@ class ContactResult:
             f"impacts (fully frozen pieces of the plan) at t = "
             f"{np.round(self.physical.impact_times, 4).tolist()} s",
             self.verification.summary(),
+            self.task.summary(),
             *tried,
         ])
 
 
-def _status(ocp: OcpResult, verification: Verification) -> str:
+def _status(ocp: OcpResult, verification: Verification, task: TaskReport) -> str:
+    """The first thing that failed: the solver, the physics, the task; else "converged"."""
     if not ocp.success:
         return ocp.status.name.lower()
-    return "converged" if verification.passed else "verification_failed"
+    if not verification.passed:
+        return "verification_failed"
+    return "converged" if task.passed else task.status
+
+
+def task_report(problem: ContactProblem, physical: PhysicalTrajectory) -> TaskReport:
+    """The problem's goals measured on a plan's physical trajectory."""
+    cls = problem.system.cls
+    motion = Motion(t=physical.t, q=physical.q, gaps=physical.gaps, names=cls.q_names)
+    return check_goals(problem.goals, motion)
 
 
 def _perturbed(ocp: OptimalControlProblem, noise: float,
@@ -381,8 +420,10 @@ def _transcribe(problem: ContactProblem) -> tuple[OptimalControlProblem, TimeFre
     n_u = u_phys.numel()
     u_lower = np.concatenate([problem.u_lower, [s_min]])
     u_upper = np.concatenate([problem.u_upper, [s_max]])
-    u_guess = np.concatenate([np.clip(np.zeros(n_u), problem.u_lower, problem.u_upper),
-                              [np.clip(T / problem.tau_horizon, s_min, s_max)]])
+    controls = np.zeros((n_int, n_u)) if problem.control_guess is None else \
+        problem.control_guess
+    u_guess = np.hstack([np.clip(controls, problem.u_lower, problem.u_upper),
+                         np.full((n_int, 1), np.clip(T / problem.tau_horizon, s_min, s_max))])
     terminal = problem.terminal
     x_guess = y0
     if problem.guess is not None:
@@ -838,11 +879,12 @@ def solve_contact(
         solved = time.perf_counter()
         physical = to_physical_time(system, result.t, result.x)
         verification = verify_plan(problem, system, result, physical, options)
+        task = task_report(problem, physical)
         verify_time = time.perf_counter() - solved
         totals["build"] += result.build_time
         totals["solve"] += result.solve_time
         totals["verify"] += verify_time
-        status = _status(result, verification)
+        status = _status(result, verification, task)
         attempts.append(Attempt(seed=seed, status=status, iterations=result.total_iterations,
                                 solve_time=result.solve_time, verify_time=verify_time,
                                 end_state_deviation=verification.end_state_deviation))
@@ -854,7 +896,7 @@ def solve_contact(
         u=result.u[:, :n_u], speed_of_time=result.u[:, n_u], physical=physical,
         verification=verification, options=options,
         timings={**totals, "total": time.perf_counter() - start},
-        attempts=tuple(attempts),
+        attempts=tuple(attempts), task=task,
     )
     if verbose:
         print(contact.summary(), flush=True)

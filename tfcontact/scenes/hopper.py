@@ -32,6 +32,10 @@ class HopperTask:
         state_weights, terminal_weights, control_weights: least-squares weights.
         lower, upper: state box (q, v).
         control_bound: |u_i| <= control_bound for (hip torque [N m], leg force [N]).
+        goal_tolerance: the task is done when the base x ends within this of the last
+            way point's x [m] ...
+        lift_offs, lift_height: ... and the foot rose above `lift_height` [m] at least
+            `lift_offs` separate times (the hops happened).
     """
 
     name: str
@@ -47,6 +51,9 @@ class HopperTask:
     upper: tuple[float, ...]
     control_bound: float = 50.0
     gap_scale: float = 30.0
+    goal_tolerance: float = 0.05
+    lift_offs: int = 1
+    lift_height: float = 0.05
 
     def __post_init__(self) -> None:
         if len(self.waypoints) < 2:
@@ -101,7 +108,7 @@ def hopper_task(name: str = "short") -> HopperTask:
                        (1.3, 0.5, 0.0, 0.5) + _ZERO_V),
             state_weights=_Q, terminal_weights=_Q_T, control_weights=(0.001, 0.001),
             lower=_LOWER,
-            upper=_upper(2.0),
+            upper=_upper(2.0), lift_offs=2,
         )
     if name == "bench":
         return HopperTask(
@@ -169,6 +176,7 @@ def hopper_problem(task: HopperTask | str = "short"):
 
     from tfcontact.ocp import Constraint
     from tfcontact.ocp.contact import ContactProblem
+    from tfcontact.ocp.goals import EndPosition, LiftOffs, Moves
     from tfcontact.timefreezing import Inelastic, time_freeze
 
     task = hopper_task(task) if isinstance(task, str) else task
@@ -201,6 +209,8 @@ def hopper_problem(task: HopperTask | str = "short"):
         u_lower=-task.control_bound, u_upper=task.control_bound,
         q_lower=lower[:4], q_upper=upper[:4], v_lower=lower[4:], v_upper=upper[4:],
         path=no_slip,
+        goals=(EndPosition("x", float(task.x_end[0]), task.goal_tolerance),
+               LiftOffs(0, task.lift_offs, task.lift_height), Moves()),
     )
     return robot, ground, problem
 

@@ -52,6 +52,7 @@ class PlanOutcome:
     success: bool
     summary: str
     files: tuple[Path, ...] = ()
+    task: dict | None = None  # the goals measured (`TaskReport.to_dict()`), if stated
 
 
 @dataclass(frozen=True)
@@ -182,9 +183,10 @@ def run_plan(name: str, out_dir: Path | str, *, task: str | None = None,
                 print(f"plan {name} ({task}): {robot.model.name}, nq = {robot.nq}, "
                       f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
             result = solve_contact(problem, options, verbose=verbose)
-            trajectory = trajectory_from_result(result, robot.spec, setup.scene)
+            trajectory = trajectory_from_result(result, robot.spec, setup.scene,
+                                                task=result.task.to_dict())
             outcome = PlanOutcome(trajectory, robot, result.status, result.success,
-                                  result.summary())
+                                  result.summary(), task=result.task.to_dict())
         files = _write_outcome(name, task, stage, start, outcome)
     files = [folder.final_path(f, stage) for f in files]
     if verbose:
@@ -214,6 +216,6 @@ def _write_outcome(name: str, task: str, out: Path, start: float,
     (out / "summary.json").write_text(json.dumps({
         "plan": name, "task": task, "status": outcome.status,
         "success": outcome.success, "wall_time": time.perf_counter() - start,
-        "summary": outcome.summary}, indent=2))
+        "task_checks": outcome.task, "summary": outcome.summary}, indent=2))
     files.append(out / "summary.json")
     return [Path(f) for f in files]
