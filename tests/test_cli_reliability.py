@@ -197,3 +197,21 @@ def test_output_folder_is_untouched_when_writing_fails(tmp_path):
         raise KeyboardInterrupt
     assert [p.name for p in target.iterdir()] == ["old.txt"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plan"]
+
+
+def test_check_command_exit_codes(tmp_path, capsys):
+    """`tfcontact check`: 0 on an intact physical plan, 2 with one line on a damaged or
+    missing file (never a traceback)."""
+    saved = Path(__file__).resolve().parent.parent / "benchmarks" / "plans_particles"
+    intact = saved / "throwing_ball" / "trajectory.npz"
+    assert main(["check", str(intact)]) == 0
+    capsys.readouterr()
+    for name in ("trajectory.npz", "trajectory.json"):
+        (tmp_path / name).write_bytes((intact.parent / name).read_bytes())
+    data = bytearray((tmp_path / "trajectory.npz").read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    (tmp_path / "trajectory.npz").write_bytes(bytes(data))
+    for path in (tmp_path / "trajectory.npz", tmp_path / "missing.npz"):
+        assert main(["check", str(path)]) == 2
+        err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+        assert len(err) == 1 and "Traceback" not in err[0]

@@ -4,6 +4,8 @@
     tfcontact plan hopper --out DIR [--task long] [--attempts N] [--force] [--quiet]
     tfcontact plan monoped --out DIR [--task reduced|hand-set]
     tfcontact replay DIR/trajectory.npz [--html OUT] [--open]
+    tfcontact check DIR/trajectory.npz
+    tfcontact sweep hopper --starts 20 [--grid friction=0.5,0.8] [--scheduler ADDRESS]
 
 Exit codes (`EXIT_CODES`): 0 plan verified (or command done), 1 plan failed (solver or
 verification; the reason is printed), 2 bad input or usage (one line naming the problem
@@ -79,6 +81,12 @@ def _replay(args: argparse.Namespace) -> int:
     return cli_replay(args)
 
 
+def _check(args: argparse.Namespace) -> int:
+    from tfcontact.viz import cli_check
+
+    return cli_check(args)
+
+
 def main(argv: list[str] | None = None) -> int:
     codes = "\n".join(f"  {code:<4} {meaning}" for code, meaning in EXIT_CODES.items())
     parser = argparse.ArgumentParser(
@@ -124,6 +132,17 @@ def main(argv: list[str] | None = None) -> int:
                         help="write the HTML scripts uncompressed (browsers without "
                              "DecompressionStream)")
     replay.set_defaults(func=_replay)
+
+    check = sub.add_parser(
+        "check", help="check a trajectory file: checksums, format version and physics",
+        epilog="exit codes: 0 intact and physical, 1 a physics check fails, 2 the file is "
+               "missing, damaged or foreign")
+    check.add_argument("trajectory", help="a trajectory .npz (or its .json sidecar)")
+    check.add_argument("--penetration", type=_positive(float, "--penetration"), default=1e-3,
+                       help="largest allowed penetration of a contact [m] (default 1e-3)")
+    check.add_argument("--tol", type=_positive(float, "--tol"), default=1e-6,
+                       help="tolerance of the clock and momentum checks (default 1e-6)")
+    check.set_defaults(func=_check)
 
     args = parser.parse_args(argv)  # a usage error exits 2 here, with one line
     from tfcontact.interrupt import raise_on_sigterm
