@@ -27,6 +27,7 @@ import numpy as np
 
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp.contact import ContactProblem
+from tfcontact.ocp.goals import EndPosition, LiftOffs, Moves
 from tfcontact.ocp.problem import Constraint
 from tfcontact.robot import ContactSpec, Ground, Robot, load_robot
 from tfcontact.timefreezing import Inelastic, TimeFreezingSystem, from_robot, time_freeze
@@ -55,6 +56,8 @@ class MonopedTask:
             p_z >= b (1 - ((p_x - x_c)/a)^2), the parabola under the ellipse's top half,
             whose gradient in p_z never vanishes (the ellipse's does at p_z = 0, where a
             foot on the ground at a hole's edge gets stuck in a locally infeasible point).
+        lift_height: the task's check counts a hop where the foot rises above this [m];
+            one hop per hole is asked (and the base x at the goal's, within 5 cm).
     """
 
     horizon: float = 2.5
@@ -71,6 +74,7 @@ class MonopedTask:
     stagewise_clock: bool = True
     hole_form: str = "ellipse"
     gap_scale: float = 1.0
+    lift_height: float = 0.05
 
     def __post_init__(self) -> None:
         if self.hole_form not in ("ellipse", "bump"):
@@ -197,6 +201,17 @@ class MonopedProblem:
                          for c in self.task.holes], axis=1).reshape(len(p), -1)
 
 
+def _goals(task: MonopedTask, x_name: str) -> tuple:
+    """The task checks: the base x at the goal's, one hop per hole, and motion when the
+    goal differs from the start (a task without holes may stand still)."""
+    goals = [EndPosition(x_name, task.q_goal[0], 0.05)]
+    if task.holes:
+        goals.append(LiftOffs(0, len(task.holes), task.lift_height))
+    if not np.allclose(task.q0, task.q_goal):
+        goals.append(Moves())
+    return tuple(goals)
+
+
 def monoped_problem(task: MonopedTask | str = "full") -> MonopedProblem:
     """Build TF-9's OCP for the project's monoped URDF.
 
@@ -238,6 +253,7 @@ def monoped_problem(task: MonopedTask | str = "full") -> MonopedProblem:
         speed_of_time=task.speed_of_time, stagewise_clock=task.stagewise_clock,
         path=Constraint(path_expr, path_lower, path_upper),
         terminal=Constraint(q, np.array(task.q_goal), np.array(task.q_goal)),
+        goals=_goals(task, cls.q_names[0]),
     )
     return MonopedProblem(task=task, robot=robot, ground=ground, system=system,
                           problem=problem, knee=knee, foot=foot)

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from tfcontact.errors import InvalidInput, positive_int
 
 
@@ -103,9 +105,15 @@ def _monoped(task: str, out: Path, verbose: bool) -> PlanOutcome:
         print(chain.summary(), flush=True)
     if chain.plan is None:
         return PlanOutcome(None, mp.robot, chain.status, False, chain.summary())
+    task = _polished_task(chain.plan, mp.problem)
+    status = chain.status if not chain.success else \
+        ("converged" if task.passed else task.status)
+    summary = f"{chain.summary()}\n{task.summary()}"
+    if verbose:
+        print(task.summary(), flush=True)
     files = (save_exact_plan(chain.plan, out / "plan.npz"),
              plot_exact_plan(chain.plan, mp, out / "path.png"))
-    solver = {"status": chain.status, "message": chain.message,
+    solver = {"status": status, "message": chain.message,
               "objective": chain.plan.cost, "wall_time": chain.wall_time,
               "smallest_hole_value": chain.smallest_hole_value,
               "phases": [dataclasses.asdict(p) for p in chain.plan.phases],
@@ -115,9 +123,21 @@ def _monoped(task: str, out: Path, verbose: bool) -> PlanOutcome:
                            else "RK4 multiple shooting") + " on the fixed control grid",
               "steps_per_interval": list(chain.plan.substeps)}
     trajectory = trajectory_from_polished(chain.plan, mp.system.cls, mp.robot.spec,
-                                          mp.scene(), solver=solver)
-    return PlanOutcome(trajectory, mp.robot, chain.status, chain.success, chain.summary(),
-                       files)
+                                          mp.scene(), solver=solver, task=task.to_dict())
+    return PlanOutcome(trajectory, mp.robot, status, chain.success and task.passed, summary,
+                       files, task=task.to_dict())
+
+
+def _polished_task(plan: Any, problem: Any) -> Any:
+    """The problem's goals measured on an exact re-solve's nodes (`TaskReport`)."""
+    from tfcontact.ocp.goals import Motion, check_goals
+    from tfcontact.ocp.polish import node_samples
+
+    cls = problem.system.cls
+    gaps = node_samples(plan, cls)["gap"].reshape(len(plan.t), -1)
+    motion = Motion(t=np.asarray(plan.t), q=np.asarray(plan.x)[:, :cls.n_q], gaps=gaps,
+                    names=cls.q_names)
+    return check_goals(problem.goals, motion)
 
 
 PLANS: dict[str, Plan] = {
