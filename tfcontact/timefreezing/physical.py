@@ -15,16 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from tfcontact.errors import InvalidInput
+
+# Defined next to the simulator (a lower layer), which reads frozen pieces with it too.
+from tfcontact.fesd.simulate import FROZEN_RATE_TOL
 from tfcontact.timefreezing.system import TimeFreezingSystem
-
-FROZEN_RATE_TOL = 1e-3
-"""Clock rate dt/dtau [-] at or below which a sampling interval counts as frozen.
-
-Not 0: a relaxed complementarity (residual sigma) lets the step variable of the gap stay
-at about sigma / |f_c| while the state sits on f_c = 0 during the auxiliary phase, so the
-clock creeps at a rate of that order (measured: 1e-5 with sigma = 1e-9). A persistent
-contact runs at gamma = D a_n / (D a_n - phi), far above it for any sensible a_n.
-nosnoc uses the same number (`time_freezing_tolerance` = 1e-3)."""
 
 
 @dataclass(frozen=True, eq=False)
