@@ -64,14 +64,19 @@ def test_a_signal_inside_ipopt_stops_the_plan_and_keeps_the_old_one(tmp_path, si
 
 
 def _slow_nlp() -> ca.Function:
-    """An infeasible NLP that IPOPT works on for tens of seconds."""
+    """An infeasible NLP that IPOPT works on for tens of seconds, with the iteration
+    callback that tfcontact's solvers carry."""
     n = 20000
     x = ca.SX.sym("x", n)
     f = ca.sum1((x[1:] - x[:-1] ** 2) ** 2) + ca.sum1((1 - x) ** 2)
     g = ca.vertcat(ca.sum1(x ** 2) + 1, ca.sin(x[:-1]) * ca.cos(x[1:]))
     return ca.nlpsol("slow", "ipopt", {"x": x, "f": f, "g": g},
                      {"ipopt": {"print_level": 0, "sb": "yes", "max_iter": 100000},
-                      "print_time": False, "error_on_fail": False})
+                      "print_time": False, "error_on_fail": False,
+                      "iteration_callback": _STOP})
+
+
+_STOP = interrupt.StopOnSignal()  # CasADi keeps a borrowed reference only
 
 
 def test_guard_turns_ctrl_c_inside_ipopt_into_interrupted():

@@ -43,6 +43,12 @@ def test_each_goal_measures_the_motion():
     assert values["clearance contact 0"] == pytest.approx(0.3)
     assert values["lift-offs contact 0"] == 1  # the 2 cm excursion is below 5 cm
     assert check_goals([LiftOffs(0, 2, 0.015)], motion).checks[0].value == 2
+    # a foot that starts in the air, or rises twice without touching down, lifts off once
+    swing = Motion(t=np.arange(6.0), q=np.zeros((6, 1)),
+                   gaps=np.array([[0.2], [0.0], [0.3], [0.1], [0.3], [0.0]]), names=("x",))
+    assert check_goals([LiftOffs(0, 1, 0.05)], swing).checks[0].value == 1
+    with pytest.raises(InvalidInput, match="`touch` .* must lie below `height`"):
+        LiftOffs(0, 1, 0.05, touch=0.1)
     missed = check_goals([EndPosition("x", 1.3, 0.05), Progress("x", -0.1),
                           LiftOffs(0, 2, 0.05)], motion)
     assert not missed.passed and missed.status == "goal_missed"

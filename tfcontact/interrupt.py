@@ -16,6 +16,7 @@ a signal was recorded, whatever happened to the exception.
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
 from collections.abc import Iterator
@@ -26,6 +27,7 @@ import casadi as ca
 
 from tfcontact.errors import Interrupted
 
+_CASADI_MODULE = os.path.join("casadi", "casadi.py")
 # The signal recorded by the innermost active `guard()` (None: none), read by StopOnSignal.
 _pending: list[int] = []
 
@@ -63,6 +65,11 @@ def guard() -> Iterator[_Caught]:
     def handler(signum: int, frame: FrameType | None) -> None:
         caught.signal_number = signum
         _pending.append(signum)
+        if frame is not None and frame.f_code.co_filename.endswith(_CASADI_MODULE):
+            # Inside CasADi's own Python glue (argument conversion) an exception is
+            # "ignored" with a printed traceback (Python 3.13); StopOnSignal and the
+            # check on leaving the block stop the solve instead.
+            return
         raise Interrupted(signum)
 
     _pending.clear()

@@ -170,26 +170,35 @@ class Clearance(Goal):
 @dataclass(frozen=True)
 class LiftOffs(Goal):
     """Contact `contact` leaves the ground at least `count` separate times, each time
-    rising above `height` [m] (hops or steps that happened, not a foot that skims)."""
+    rising above `height` [m] after touching it (gap <= `touch` [m]): hops or steps that
+    happened, not a foot that skims or swings twice in one flight."""
 
     contact: int
     count: int
     height: float
+    touch: float = 1e-3
 
     def __post_init__(self) -> None:
         positive_int(self.count, "count")
         _finite(self.height, "height", positive=True)
+        if not 0 < _finite(self.touch, "touch", positive=True) < self.height:
+            raise InvalidInput(f"`touch` ({self.touch} m) must lie below `height` "
+                               f"({self.height} m)")
 
     def validate(self, names: Sequence[str], n_contacts: int) -> None:
         Clearance(self.contact, self.height).validate(names, n_contacts)
 
     def check(self, motion: Motion) -> GoalCheck:
-        above = motion.gaps[:, self.contact] >= self.height
-        rises = int(above[0]) + int(np.count_nonzero(above[1:] & ~above[:-1]))
+        rises, grounded = 0, False
+        for gap in motion.gaps[:, self.contact]:
+            if gap <= self.touch:
+                grounded = True
+            elif gap >= self.height and grounded:
+                rises, grounded = rises + 1, False
         return GoalCheck(f"lift-offs contact {self.contact}",
-                         f"times contact {self.contact} rises above {self.height:g} m",
-                         float(rises), float(self.count), bool(rises >= self.count),
-                         GOAL_MISSED)
+                         f"times contact {self.contact} rises above {self.height:g} m from "
+                         "the ground", float(rises), float(self.count),
+                         bool(rises >= self.count), GOAL_MISSED)
 
 
 @dataclass(frozen=True)
