@@ -1,0 +1,149 @@
+"""How a sweep builds a plan for one case: one `SweepTarget` object per plan."""
+
+from __future__ import annotations
+
+import dataclasses
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from tfcontact.errors import InvalidInput
+from tfcontact.scenes import PLANS, PlanSetup
+from tfcontact.sweep.perturbation import CoordinateRange, Perturbation
+
+
+class SweepTarget(ABC):
+    """A plan as a sweep sees it: its tasks, the problem-level grid keys it can vary
+    (`tfcontact.sweep.GRID_PARAMETERS` of level "problem") and its start perturbation.
+
+    Targets are built on the workers, so they must pickle (module-level frozen dataclasses).
+    """
+
+    name: str
+    tasks: tuple[str, ...]
+    problem_parameters: frozenset[str]
+
+    @abstractmethod
+    def setup(self, task: str, params: Mapping[str, float]) -> PlanSetup:
+        """The plan's robot, problem and options for `task` with the problem-level `params`."""
+
+    def perturbation(self, setup: PlanSetup) -> Perturbation:
+        """The start perturbation (default: `Perturbation.from_names` of the coordinates)."""
+        return Perturbation.from_names(tuple(setup.problem.system.cls.q_names))
+
+
+HOPPER_PERTURBATION = Perturbation((
+    CoordinateRange("x", -0.05, 0.05),
+    CoordinateRange("z", 0.0, 0.05),
+    CoordinateRange("pitch", -0.05, 0.05),
+))
+"""The hopper's perturbed starts: base x +-5 cm, base height up to 5 cm higher (the foot
+rests on the ground at the nominal start, gap z - l cos(pitch) = 0, so it only rises),
+leg angle +-0.05 rad."""
+
+
+def _check_task(target: SweepTarget, task: str) -> None:
+    if task not in target.tasks:
+        raise InvalidInput(f"plan `{target.name}` has no task `{task}`; tasks: "
+                           f"{', '.join(target.tasks)}")
+
+
+@dataclass(frozen=True)
+class HopperTarget(SweepTarget):
+    """The hopper plan (`tfcontact.scenes.hopper`, TF-8): the plan's problem and options
+    (`hopper_problem`, `hopper_options`), its friction coefficient and a_n set in its
+    `HopperTask`. Tasks: `hopper_task`'s ("short" as `tfcontact plan hopper`)."""
+
+    name: str = "hopper"
+    tasks: tuple[str, ...] = ("short", "long", "bench")
+    problem_parameters: frozenset[str] = frozenset({"friction", "a_n"})
+    start_perturbation: Perturbation = field(default=HOPPER_PERTURBATION)
+
+    def setup(self, task: str, params: Mapping[str, float]) -> PlanSetup:
+        from tfcontact.scenes.hopper import hopper_options, hopper_problem, hopper_task
+
+        _check_task(self, task)
+        changes = {"mu": params.get("friction"), "a_n": params.get("a_n")}
+        data = dataclasses.replace(hopper_task(task),
+                                   **{k: v for k, v in changes.items() if v is not None})
+        robot, ground, problem = hopper_problem(data)
+        options = hopper_options(data)
+        scene = {"terrain": {"type": "flat", "height": float(ground.height),
+                             "normal": [float(c) for c in ground.normal]}}
+        return PlanSetup(robot, problem, options, scene)
+
+    def perturbation(self, setup: PlanSetup) -> Perturbation:
+        return self.start_perturbation
+
+
+PARTICLE_PERTURBATION = Perturbation((
+    CoordinateRange("q_x", -0.05, 0.05),
+    CoordinateRange("q_z", 0.0, 0.05),
+))
+"""The particle's perturbed starts: x +-5 cm, drop height up to 5 cm higher [m]."""
+
+
+@dataclass(frozen=True)
+class ParticleTarget(SweepTarget):
+    """TF-3, the particle with friction pushed to x = 3 m (`particle_friction_problem`),
+    with the options its CI test solves it with (Radau IIA 2, N_FE = 3, l_inf penalty,
+    3 attempts); the friction coefficient varies. Tasks: "tf3" (N = 20) and "reduced"
+    (N = 6, about 1 s a solve: the cheap sweep for CI and for trying a cluster)."""
+
+    name: str = "particle"
+    tasks: tuple[str, ...] = ("tf3", "reduced")
+    problem_parameters: frozenset[str] = frozenset({"friction"})
+    start_perturbation: Perturbation = field(default=PARTICLE_PERTURBATION)
+
+    def setup(self, task: str, params: Mapping[str, float]) -> PlanSetup:
+        from tfcontact.fesd import RadauIIA
+        from tfcontact.mpcc import LinfPenalty
+        from tfcontact.ocp.contact import ContactSolverOptions
+        from tfcontact.scenes.particle_ocps import BALL_GROUND, particle_friction_problem
+
+        _check_task(self, task)
+        mu = {"mu": params["friction"]} if "friction" in params else {}
+        problem = particle_friction_problem(n_intervals=20 if task == "tf3" else 6, **mu)
+        options = ContactSolverOptions(scheme=RadauIIA(2), n_finite_elements=3,
+                                       relaxation=LinfPenalty(), attempts=3)
+        return PlanSetup(None, problem, options, BALL_GROUND)
+
+    def perturbation(self, setup: PlanSetup) -> Perturbation:
+        return self.start_perturbation
+
+
+@dataclass(frozen=True)
+class PlanTarget(SweepTarget):
+    """Any plan of `tfcontact.scenes.PLANS` with a `build`: its starts perturbed by the
+    defaults of its coordinate names, only options-level grid keys."""
+
+    name: str
+    tasks: tuple[str, ...]
+    problem_parameters: frozenset[str] = frozenset()
+
+    def setup(self, task: str, params: Mapping[str, float]) -> PlanSetup:
+        _check_task(self, task)
+        if params:
+            raise InvalidInput(f"plan `{self.name}` has no problem-level grid keys, got "
+                               f"{sorted(params)}")
+        return PLANS[self.name].build(task)
+
+
+SWEEP_TARGETS: dict[str, SweepTarget] = {"hopper": HopperTarget(),
+                                         "particle": ParticleTarget()}
+"""Plans with their own sweep target (and the TF-3 particle, a reference problem rather
+than a `tfcontact plan`); other plans with a `build` get a `PlanTarget`."""
+
+
+def sweep_target(plan: str) -> SweepTarget:
+    """The `SweepTarget` of the plan named `plan`."""
+    if plan in SWEEP_TARGETS:
+        return SWEEP_TARGETS[plan]
+    sweepable = sorted({*SWEEP_TARGETS, *(n for n, p in PLANS.items() if p.build is not None)})
+    if plan not in PLANS:
+        raise InvalidInput(f"unknown plan `{plan}`; sweepable plans: {', '.join(sweepable)}")
+    if PLANS[plan].build is None:
+        raise InvalidInput(f"plan `{plan}` solves itself in its own chain, with no single "
+                           f"contact problem whose start a sweep could perturb; sweepable "
+                           f"plans: {', '.join(sweepable)}")
+    return PlanTarget(plan, PLANS[plan].tasks)
