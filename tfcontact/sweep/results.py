@@ -1,0 +1,266 @@
+"""A sweep's results: one `CaseResult` per case (its own JSON file) and the `SweepResult`."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tfcontact.errors import TfcontactError
+from tfcontact.sweep.spec import GridValue, SweepCase, SweepSpec
+
+CASE_FORMAT = 1
+"""Version of the case files' layout (`CaseResult.to_dict`)."""
+
+ERROR = "error"
+"""The status of a case whose solve raised (the exception's type and message in `failure`)."""
+
+
+class CaseFileError(TfcontactError):
+    """A case file is unreadable or belongs to another sweep."""
+
+
+@dataclass(frozen=True)
+class CaseResult:
+    """What one case of a sweep did.
+
+    Attributes:
+        case_id, plan, task, params, start, seed: the `SweepCase` (and its sweep's plan).
+        offsets: what the perturbation added to the nominal start, by coordinate name.
+        q0, v0: the perturbed start state; q_names: the names of q0's entries.
+        status: the plan's `ContactResult.status` ("converged", "verification_failed",
+            "nlp_failed", "not_converged") or "error" (the solve raised).
+        success: converged and verified (the last attempt's plan).
+        first_attempt_success: the first attempt (unperturbed guess) was verified.
+        attempts_used: solves made (`ContactSolverOptions.attempts` at most).
+        attempt_statuses: each attempt's status.
+        iterations: IPOPT iterations over all attempts.
+        objective: the returned plan's OCP cost [cost] (nan: none).
+        residual: its complementarity residual.
+        end_state_deviation: its verification's end-state deviation [state units].
+        times: seconds: "build", "solve", "verify" (summed over attempts, as
+            `ContactResult.timings`), "wall" (the whole case on its worker, with the
+            problem's construction) and "cpu" (its worker process's CPU seconds: on a
+            shared machine the wall time also counts the waits for a core).
+        failure: why the returned plan failed (None when it succeeded).
+        failure_kind: a short class of `failure` for counting ("nlp_failed",
+            "verification: end state", ...; None when it succeeded).
+        verification: the verification's summary line ("" for an error).
+        extra: the draws the feasible start took, each attempt (`Attempt` as a dict) and
+            the solver settings.
+    """
+
+    case_id: str
+    plan: str
+    task: str
+    params: tuple[tuple[str, GridValue], ...]
+    start: int
+    seed: int
+    offsets: dict[str, float]
+    q0: tuple[float, ...]
+    v0: tuple[float, ...]
+    q_names: tuple[str, ...]
+    status: str
+    success: bool
+    first_attempt_success: bool
+    attempts_used: int
+    attempt_statuses: tuple[str, ...]
+    iterations: int
+    objective: float
+    residual: float
+    end_state_deviation: float
+    times: dict[str, float]
+    failure: str | None
+    failure_kind: str | None
+    verification: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def group(self) -> str:
+        return SweepCase(self.params, self.start, self.seed).group
+
+    @property
+    def wall_time(self) -> float:
+        return self.times.get("wall", math.nan)
+
+    @classmethod
+    def from_contact(cls, case: SweepCase, plan: str, task: str, start: Any, result: Any,
+                     wall_time: float, *, cpu_time: float = math.nan) -> CaseResult:
+        """The record of a solved case (`start` a `PerturbedStart`, `result` a
+        `ContactResult`, the case's wall and CPU seconds on its worker)."""
+        attempts = result.attempts
+        failure, kind = (None, None) if result.success else failure_reason(result)
+        return cls(
+            case_id=case.case_id, plan=plan, task=task, params=case.params, start=case.start,
+            seed=case.seed, offsets=dict(start.offsets),
+            q0=tuple(float(v) for v in start.q0), v0=tuple(float(v) for v in start.v0),
+            q_names=tuple(result.problem.system.cls.q_names),
+            status=result.status, success=bool(result.success),
+            first_attempt_success=bool(attempts) and attempts[0].status == "converged",
+            attempts_used=len(attempts),
+            attempt_statuses=tuple(a.status for a in attempts),
+            iterations=int(sum(a.iterations for a in attempts)),
+            objective=float(result.ocp.cost), residual=float(result.ocp.residual),
+            end_state_deviation=float(result.verification.end_state_deviation),
+            times={**{k: float(result.timings[k]) for k in ("build", "solve", "verify")},
+                   "wall": float(wall_time), "cpu": float(cpu_time)},
+            failure=failure, failure_kind=kind, verification=result.verification.summary(),
+            extra={"draws": start.tries, "attempts": [asdict(a) for a in attempts],
+                   "options": _options_record(result.options)},
+        )
+
+    @classmethod
+    def from_error(cls, case: SweepCase, plan: str, task: str, error: BaseException,
+                   wall_time: float = math.nan) -> CaseResult:
+        """The record of a case whose solve raised `error` (no plan, no start known)."""
+        return cls(
+            case_id=case.case_id, plan=plan, task=task, params=case.params, start=case.start,
+            seed=case.seed, offsets={}, q0=(), v0=(), q_names=(), status=ERROR, success=False,
+            first_attempt_success=False, attempts_used=0, attempt_statuses=(), iterations=0,
+            objective=math.nan, residual=math.nan, end_state_deviation=math.nan,
+            times={"wall": float(wall_time)},
+            failure=f"{type(error).__name__}: {error}", failure_kind=f"error: "
+            f"{type(error).__name__}")
+
+    def to_dict(self) -> dict:
+        out = asdict(self)
+        out["params"] = dict(self.params)
+        return {"format": CASE_FORMAT, **out}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> CaseResult:
+        if data.get("format") != CASE_FORMAT:
+            raise CaseFileError(f"case format {data.get('format')!r}, expected {CASE_FORMAT}")
+        names = {f.name for f in fields(cls)}
+        values = {k: v for k, v in data.items() if k in names}
+        missing = names - set(values) - {"verification", "extra"}
+        if missing:
+            raise CaseFileError(f"case record lacks {sorted(missing)}")
+        values["params"] = tuple(values["params"].items())
+        for key in ("q0", "v0", "q_names", "attempt_statuses"):
+            values[key] = tuple(values[key])
+        return cls(**values)
+
+    def save(self, folder: Path) -> Path:
+        """Write `folder/<case_id>.json` atomically (a stopped write leaves no torn file)."""
+        path = folder / f"{self.case_id}.json"
+        partial = path.with_suffix(".json.partial")
+        partial.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
+        os.replace(partial, path)
+        return path
+
+    @classmethod
+    def load(cls, path: Path, case: SweepCase, plan: str, task: str) -> CaseResult:
+        """The record in `path`, checked to be `case`'s of this plan and task."""
+        try:
+            record = cls.from_dict(json.loads(path.read_text()))
+        except (OSError, ValueError, TypeError, KeyError, AttributeError) as error:
+            raise CaseFileError(f"unreadable case file {path}: {error}") from error
+        if (record.plan, record.task, record.params, record.start, record.seed) != (
+                plan, task, case.params, case.start, case.seed):
+            raise CaseFileError(f"case file {path} holds another case ({record.plan} "
+                                f"{record.task}, {dict(record.params)}, start {record.start}, "
+                                f"seed {record.seed})")
+        return record
+
+
+def _options_record(options: Any) -> dict[str, Any]:
+    """The solver settings a case ran with, the ones a grid varies and the restarts."""
+    if options is None:
+        return {}
+    return {"relaxation": options.relaxation.name, "method": repr(options.method),
+            "scheme": repr(options.scheme), "n_finite_elements": options.n_finite_elements,
+            "attempts": options.attempts, "ipopt_threads": options.nlp.threads}
+
+
+def failure_reason(result: Any) -> tuple[str, str]:
+    """(why, short class) of a failed `ContactResult`: the homotopy's status, or the
+    verification checks outside their tolerances."""
+    ocp = result.ocp
+    if not ocp.success:
+        return (f"{result.status}: last IPOPT status {ocp.ipopt_status or 'none'}, "
+                f"complementarity residual {ocp.residual:.2e} after {ocp.n_nlps} NLPs"), \
+            result.status
+    v = result.verification
+    tol = v.tolerances
+    failed = []
+    if v.end_state_deviation > tol.get("end_state", math.inf) and not v.open_loop_unstable:
+        failed.append(("end state", f"end-state deviation {v.end_state_deviation:.2e} > "
+                                    f"{tol['end_state']:.0e}"))
+    if v.min_gap < -tol.get("gap", math.inf):
+        failed.append(("gap", f"min gap {v.min_gap:.2e} m < -{tol['gap']:.0e}"))
+    if not v.clock_monotone or v.clock_end_error > tol.get("clock", math.inf):
+        failed.append(("clock", f"clock monotone {v.clock_monotone}, end error "
+                                f"{v.clock_end_error:.2e} s"))
+    if not failed:  # the cone's tolerance is relative to the plan's largest normal impulse
+        failed.append(("cone", f"friction cone {v.friction_cone_violation:.2e} N s or "
+                               f"maximal dissipation {v.dissipation_violation:.2e} N s above "
+                               f"{tol.get('cone', math.nan):g} x the largest normal impulse"))
+    kind = "verification: " + ", ".join(k for k, _ in failed)
+    return "; ".join(text for _, text in failed), kind
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """A sweep's outcome: its spec, one `CaseResult` per case and how this run went.
+
+    Attributes:
+        spec: the `SweepSpec`.
+        out_dir: the sweep folder (`cases/`, `table.md`, `chart.png`, `sweep.json`).
+        cases: the records in `spec.cases()` order.
+        solved: cases solved by this run; resumed: cases read from their files.
+        wall_time: this run's seconds.
+        cluster: where the cases ran (e.g. "LocalCluster, 2 workers x 1 thread").
+        files: the table and chart written.
+        meta: the perturbation ranges, the machine (cores, load averages) and the date.
+    """
+
+    spec: SweepSpec
+    out_dir: Path
+    cases: tuple[CaseResult, ...]
+    solved: int
+    resumed: int
+    wall_time: float
+    cluster: str
+    files: tuple[Path, ...] = ()
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_success(self) -> int:
+        return sum(c.success for c in self.cases)
+
+    @property
+    def n_first_attempt(self) -> int:
+        return sum(c.first_attempt_success for c in self.cases)
+
+    @property
+    def success_rate(self) -> float:
+        return self.n_success / len(self.cases) if self.cases else math.nan
+
+    @property
+    def first_attempt_rate(self) -> float:
+        return self.n_first_attempt / len(self.cases) if self.cases else math.nan
+
+    @property
+    def median_wall_time(self) -> float:
+        times = [c.wall_time for c in self.cases if math.isfinite(c.wall_time)]
+        return float(np.median(times)) if times else math.nan
+
+    def table(self) -> str:
+        """The markdown report: overall rates, per grid value, status counts, every case."""
+        from tfcontact.sweep.report import markdown
+
+        return markdown(self)
+
+    def summary(self) -> str:
+        n = len(self.cases)
+        return (f"{self.spec.plan} ({self.spec.task}): {n} cases, verified "
+                f"{self.n_success}/{n} ({100 * self.success_rate:.0f} %), at the first attempt "
+                f"{self.n_first_attempt}/{n} ({100 * self.first_attempt_rate:.0f} %), median "
+                f"wall time {self.median_wall_time:.1f} s; this run solved {self.solved}, "
+                f"resumed {self.resumed}")
