@@ -1,0 +1,294 @@
+"""Run a sweep's cases as Dask tasks, each case's record saved as it finishes."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import os
+import signal
+import sys
+import time
+import uuid
+from abc import ABC, abstractmethod
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import TextIO
+
+import numpy as np
+
+from tfcontact.errors import InvalidInput, positive_int
+from tfcontact.sweep.perturbation import perturbed_problem
+from tfcontact.sweep.report import chart
+from tfcontact.sweep.results import ERROR, CaseFileError, CaseResult, SweepResult
+from tfcontact.sweep.spec import GRID_PARAMETERS, SweepCase, SweepSpec
+from tfcontact.sweep.targets import SweepTarget
+
+SWEEP_FILE = "sweep.json"
+CASES_FOLDER = "cases"
+# What a resumed sweep must share with the one that wrote the folder: its cases' starts
+# and solver setup. The grid and the number of starts may grow.
+_SAME = ("plan", "task", "seed", "threads_per_case", "perturbation")
+
+
+def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) -> CaseResult:
+    """Solve one case (on a worker): build the plan with the case's grid point, draw its
+    perturbed start, solve and verify it with `solve_contact`."""
+    from tfcontact.ocp.contact import solve_contact
+
+    started, cpu = time.perf_counter(), time.process_time()
+    problem_params = {k: v for k, v in case.params if GRID_PARAMETERS[k].level == "problem"}
+    setup = target.setup(task, problem_params)
+    options = setup.options
+    for key, value in case.params:
+        if GRID_PARAMETERS[key].level == "options":
+            options = GRID_PARAMETERS[key].apply(options, value)
+    options = dataclasses.replace(options, nlp=dataclasses.replace(options.nlp,
+                                                                    threads=threads))
+    rng = np.random.default_rng([case.seed, case.start])
+    start = target.perturbation(setup).sample(setup.problem, rng)
+    result = solve_contact(perturbed_problem(setup.problem, start), options, verbose=False)
+    return CaseResult.from_contact(case, target.name, task, start, result,
+                                   time.perf_counter() - started,
+                                   cpu_time=time.process_time() - cpu)
+
+
+class Progress(ABC):
+    """What a sweep tells as it runs (strategy: lines, nothing, or a test's hook)."""
+
+    @abstractmethod
+    def started(self, total: int, pending: int, cluster: str) -> None:
+        """Before the first case: `total` cases, `pending` of them to solve."""
+
+    @abstractmethod
+    def finished(self, record: CaseResult, done: int, pending: int, elapsed: float) -> None:
+        """A case's record was saved: `done` of `pending` solved in `elapsed` seconds."""
+
+    @abstractmethod
+    def note(self, text: str) -> None:
+        """Something the user should know (a case file re-solved, ...)."""
+
+
+class Silent(Progress):
+    def started(self, total: int, pending: int, cluster: str) -> None:
+        pass
+
+    def finished(self, record: CaseResult, done: int, pending: int, elapsed: float) -> None:
+        pass
+
+    def note(self, text: str) -> None:
+        pass
+
+
+class ProgressLines(Progress):
+    """One line per finished case with the counts so far and the time left (log-friendly,
+    unlike a redrawn bar)."""
+
+    def __init__(self, stream: TextIO | None = None):
+        self.stream = stream
+        self.verified = 0
+
+    def _print(self, text: str) -> None:
+        print(text, file=self.stream or sys.stdout, flush=True)
+
+    def started(self, total: int, pending: int, cluster: str) -> None:
+        resumed = total - pending
+        self._print(f"sweep: {total} cases, {resumed} done before, {pending} to solve on "
+                    f"{cluster}")
+
+    def finished(self, record: CaseResult, done: int, pending: int, elapsed: float) -> None:
+        self.verified += record.success
+        offsets = ", ".join(f"{k} {v:+.3f}" for k, v in record.offsets.items())
+        how = (f"attempt {record.attempts_used}" if record.success else
+               (record.failure_kind or record.status))
+        left = elapsed / done * (pending - done)
+        width = len(str(pending))
+        self._print(f"[{done:{width}d}/{pending}] {record.case_id} ({offsets}): "
+                    f"{record.status} ({how}), {record.iterations} it, "
+                    f"{record.wall_time:.1f} s (CPU {record.times.get('cpu', 0.0):.1f} s) | "
+                    f"verified {self.verified}/{done}, "
+                    f"{elapsed:.0f} s elapsed, ~{left:.0f} s left")
+
+    def note(self, text: str) -> None:
+        self._print(f"sweep: {text}")
+
+
+def run_sweep(spec: SweepSpec, out_dir: Path | str, *, scheduler: str | None = None,
+              n_workers: int = 2, progress: bool | Progress = True) -> SweepResult:
+    """Run every case of `spec` as a Dask task and write the sweep folder.
+
+    Each case's `CaseResult` is saved as `out_dir/cases/<case_id>.json` as soon as it
+    finishes, so a stopped sweep loses only the cases running; a rerun on the same folder
+    solves only the cases without a file (and those whose solve raised, status "error").
+    At the end `table.md` (`SweepResult.table`) and `chart.png` are written from all the
+    spec's case files.
+
+    Main args:
+        spec: the `SweepSpec`.
+        out_dir: the sweep folder (created; one folder per sweep).
+
+    Other args:
+        scheduler: the address of a running Dask scheduler ("tcp://host:8786"), whose
+            workers have tfcontact installed; default: a `distributed.LocalCluster` of
+            `n_workers` processes with one thread each, closed at the end.
+        n_workers: the LocalCluster's processes (one case each at a time).
+        progress: a line per finished case (True), none (False) or a `Progress`.
+
+    Returns:
+        The `SweepResult`.
+
+    Raises:
+        InvalidInput: a bad argument, or `out_dir` holds a sweep of another plan, task,
+            seed, thread count or perturbation.
+        KeyboardInterrupt: on Ctrl-C, after cancelling the cases still running and
+            closing the cluster; the finished cases' files stay for a rerun.
+    """
+    if not isinstance(spec, SweepSpec):
+        raise InvalidInput(f"`spec` must be a SweepSpec, got {type(spec).__name__}")
+    positive_int(n_workers, "n_workers")
+    if scheduler is not None and not (isinstance(scheduler, str) and scheduler):
+        raise InvalidInput(f"`scheduler` must be an address such as 'tcp://host:8786', "
+                           f"got {scheduler!r}")
+    reporter = progress if isinstance(progress, Progress) else (
+        ProgressLines() if progress else Silent())
+    began = time.perf_counter()
+    target = spec.target
+    perturbation = target.perturbation(target.setup(spec.task, {}))
+    out = Path(out_dir)
+    cases_dir = out / CASES_FOLDER
+    header = {**spec.to_dict(), "perturbation": perturbation.to_dict()}
+    runs = _previous_runs(out / SWEEP_FILE, header)
+    cases_dir.mkdir(parents=True, exist_ok=True)
+
+    records: dict[str, CaseResult] = {}
+    pending: list[SweepCase] = []
+    for case in spec.cases():
+        path = cases_dir / f"{case.case_id}.json"
+        if not path.exists():
+            pending.append(case)
+            continue
+        try:
+            record = CaseResult.load(path, case, spec.plan, spec.task)
+        except CaseFileError as error:
+            reporter.note(f"solving {case.case_id} again: {error}")
+            pending.append(case)
+            continue
+        if record.status == ERROR:
+            pending.append(case)  # a crash may not repeat (a worker killed, ...)
+        else:
+            records[case.case_id] = record
+    resumed = len(records)
+
+    cluster = (f"the scheduler at {scheduler}" if scheduler is not None else
+               f"a LocalCluster of {n_workers} worker processes x 1 thread")
+    reporter.started(len(spec.cases()), len(pending), cluster if pending else "nothing")
+    solved: list[CaseResult] = []
+    if pending:
+        run = {"date": _now(), "cluster": cluster, "cores": os.cpu_count(),
+               "load_start": round(os.getloadavg()[0], 2)}
+        try:
+            _run(pending, spec, target, scheduler, n_workers, reporter, cases_dir, solved)
+        finally:  # also when interrupted: the folder tells which runs made its cases
+            run.update(solved=len(solved), interrupted=len(solved) < len(pending),
+                       wall_time=round(time.perf_counter() - began, 1),
+                       load_end=round(os.getloadavg()[0], 2))
+            runs.append(run)
+            _write_json(out / SWEEP_FILE, {**header, "runs": runs})
+    else:
+        _write_json(out / SWEEP_FILE, {**header, "runs": runs})
+    records.update((r.case_id, r) for r in solved)
+
+    cases = tuple(records[c.case_id] for c in spec.cases())
+    meta = {"perturbation": perturbation.to_dict(), "runs": runs}
+    result = SweepResult(spec=spec, out_dir=out, cases=cases, solved=len(solved),
+                         resumed=resumed, wall_time=time.perf_counter() - began,
+                         cluster=cluster if pending else "nothing (every case done before)",
+                         meta=meta)
+    table = out / "table.md"
+    table.write_text(result.table())
+    figure = chart(result, out / "chart.png")
+    return dataclasses.replace(result, files=(table, figure))
+
+
+def _now() -> str:
+    return datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
+
+
+def _write_json(path: Path, data: dict) -> None:
+    partial = path.with_suffix(".json.partial")
+    partial.write_text(json.dumps(data, indent=1) + "\n")
+    os.replace(partial, path)
+
+
+def _previous_runs(path: Path, header: dict) -> list[dict]:
+    """The runs recorded in the folder's sweep file, after checking that it is the same
+    sweep (`_SAME`); none for a new folder."""
+    if not path.exists():
+        return []
+    try:
+        before = json.loads(path.read_text())
+    except (OSError, ValueError) as error:
+        raise InvalidInput(f"{path} is unreadable ({error}); remove it or choose another "
+                           "folder") from error
+    differ = [k for k in _SAME if before.get(k) != header[k]]
+    if differ:
+        shown = "; ".join(f"{k}: {before.get(k)!r} there, {header[k]!r} here" for k in differ)
+        raise InvalidInput(f"{path.parent} holds another sweep ({shown}); choose another "
+                           "folder (--out) or remove it")
+    return list(before.get("runs", []))
+
+
+def _ignore_interrupts() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _run(pending: list[SweepCase], spec: SweepSpec, target: SweepTarget,
+         scheduler: str | None, n_workers: int, reporter: Progress, cases_dir: Path,
+         solved: list[CaseResult]) -> None:
+    """Solve the pending cases, saving, reporting and appending to `solved` each record as
+    it finishes."""
+    from distributed import Client, LocalCluster, as_completed
+
+    cluster = None
+    if scheduler is None:
+        # No dashboard: it needs bokeh and a free port, and a sweep reports itself.
+        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR)
+        client = Client(cluster)
+        # Ctrl-C in a terminal reaches the whole process group: the workers leave it to
+        # this process, which cancels the cases and closes them (no worker tracebacks).
+        client.run(_ignore_interrupts)
+    else:
+        try:
+            client = Client(scheduler, timeout="20s")
+        except OSError as error:  # includes the connection's timeout
+            raise InvalidInput(f"no Dask scheduler answers at {scheduler} ({error}); start "
+                               "one (`dask scheduler`) with workers that have tfcontact "
+                               "installed (`dask worker ADDRESS --nthreads 1`)") from error
+    futures = []
+    try:
+        token = uuid.uuid4().hex[:8]
+        futures = [client.submit(solve_case, target, spec.task, case, spec.threads_per_case,
+                                 key=f"sweep-{token}-{case.case_id}", pure=False)
+                   for case in pending]
+        by_key = {f.key: case for f, case in zip(futures, pending, strict=True)}
+        began = time.perf_counter()
+        for done, future in enumerate(as_completed(futures), start=1):
+            case = by_key[future.key]
+            error = future.exception()
+            if error is None:
+                record = future.result()
+            else:  # the case raised on its worker (or the worker died): record why
+                record = CaseResult.from_error(case, spec.plan, spec.task, error)
+            future.release()
+            record.save(cases_dir)
+            solved.append(record)
+            reporter.finished(record, done, len(pending), time.perf_counter() - began)
+    finally:
+        # Also on Ctrl-C: stop what still runs; the saved case files stay for a rerun.
+        unfinished = [f for f in futures if not f.done()]
+        if unfinished:
+            client.cancel(unfinished)
+        client.close()
+        if cluster is not None:
+            cluster.close()
