@@ -23,7 +23,7 @@ from tfcontact.fesd import (
 )
 from tfcontact.mpcc import Homotopy
 from tfcontact.scenes.particles import G, point_mass
-from tfcontact.timefreezing import simulate_impacts, time_freeze, to_physical_time
+from tfcontact.timefreezing import Inelastic, simulate_impacts, time_freeze, to_physical_time
 
 # Relaxed complementarity lets the particle sink about 1.2e-5 m while frozen, and the
 # clock creeps through the frozen piece (2e-6 s): both show in the state after the impact.
@@ -75,12 +75,13 @@ def test_dropped_particle_with_defaults_matches_the_closed_form(h, v0, mu):
     assert result.adaptations[-1].kind == "last_step"
 
 
-def test_adapted_gain_sets_the_frozen_duration_and_the_contact_clock_rate():
+@pytest.mark.parametrize("form", ["heaviside", "stewart"])
+def test_adapted_gain_sets_the_frozen_duration_and_the_contact_clock_rate(form):
     """The adapted a_n makes the frozen piece last |v_n| / a_n = frozen_steps steps of
     numerical time, and persistent contact runs the clock at gamma = a_n / (a_n + g)
     ([AUTO23] eq. (17)) -- the gain really is scaled, not just reported."""
     h, step = 1.0, 0.1
-    tf = time_freeze(point_mass(2, mu=0.3))
+    tf = time_freeze(point_mass(2, mu=0.3), method=Inelastic(form=form))
     result = simulate(tf, tf.initial_state([0.0, h], [3.0, 0.0]), horizon=1.2, n_steps=12)
     a_n = result.a_n[0]
     v_impact = math.sqrt(2 * G * h)
