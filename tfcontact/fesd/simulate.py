@@ -797,8 +797,7 @@ def simulate(
     return _result(
         status, failure, pieces, stepper, nominal, controls[:k], x0, adaptations,
         clock_index, gain, build_time=stepper.build_time, solve_time=solve_time,
-        n_reached=k + (status is not SimulationStatus.SUCCESS
-                       and status is not SimulationStatus.BUDGET_EXCEEDED),
+        n_reached=k + (status is SimulationStatus.STEP_FAILED),
         throw=throw)
 
 
@@ -920,8 +919,8 @@ def _result(status: SimulationStatus, failure: str, pieces: list[_Piece], steppe
         total_iterations=sum(r.total_iterations for r in stepper.attempts),
         residual=max((r.residual for r in solved), default=0.0),
         build_time=build_time, solve_time=solve_time,
-        step_results=tuple(solved + stepper.failed[-1:]) if failure and stepper.failed
-        else tuple(solved),
+        step_results=tuple(solved + stepper.failed[-1:])
+        if status is SimulationStatus.STEP_FAILED else tuple(solved),
         discretization=nominal, n_retries=len(stepper.retries),
         adaptations=tuple(adaptations), clock_index=clock_index,
         a_n=() if gain is None else gain.a_n, n_steps=n_reached,
