@@ -31,3 +31,32 @@ def test_ball_drop_example(tmp_path, monkeypatch, capsys):
     np.testing.assert_allclose(impacts[0], np.sqrt(2 * 1.0 / 9.81), atol=1e-6)
     assert (tmp_path / "ball_drop.png").stat().st_size > 0
     assert "impact at t =" in capsys.readouterr().out
+
+
+def test_readme_api_example_is_the_script_and_runs(tmp_path, monkeypatch, capsys):
+    """URDF to verified plan to replay through the top-level API (the second example)."""
+    readme = (ROOT / "README.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", readme, re.S)
+    api = [b for b in blocks if "import tfcontact\n" in b]
+    assert len(api) == 1 and api[0].strip() in (ROOT / "scripts" / "hopper_api.py").read_text()
+    monkeypatch.chdir(tmp_path)
+    namespace = runpy.run_path(str(ROOT / "scripts" / "hopper_api.py"))
+    result = namespace["result"]
+    assert result.success and result.verification.passed and result.task.passed
+    assert {c.name for c in result.task.checks} == {"end x", "lift-offs contact 0", "motion"}
+    assert (tmp_path / "hopper.html").stat().st_size > 10_000
+    assert "converged True True" in capsys.readouterr().out
+
+
+def test_top_level_names_resolve():
+    import tfcontact
+
+    for name in tfcontact.__all__:
+        assert getattr(tfcontact, name) is not None, name
+    assert tfcontact.plan.__name__ == "solve_contact"
+    try:
+        tfcontact.no_such_thing  # noqa: B018
+    except AttributeError as error:
+        assert "no attribute 'no_such_thing'" in str(error)
+    else:
+        raise AssertionError("an unknown name resolved")
