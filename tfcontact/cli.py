@@ -5,7 +5,7 @@
     tfcontact plan monoped --out DIR [--task reduced|hand-set]
     tfcontact replay DIR/trajectory.npz [--html OUT] [--open]
     tfcontact check DIR/trajectory.npz
-    tfcontact sweep hopper --starts 20 [--grid friction=0.5,0.8] [--scheduler ADDRESS]
+    tfcontact sweep hopper --starts 20 [--friction 0.5 0.8] [--scheduler ADDRESS]
 
 Exit codes (`EXIT_CODES`): 0 plan verified (or command done), 1 plan failed (solver or
 verification; the reason is printed), 2 bad input or usage (one line naming the problem
@@ -143,6 +143,10 @@ def main(argv: list[str] | None = None) -> int:
     check.add_argument("--tol", type=_positive(float, "--tol"), default=1e-6,
                        help="tolerance of the clock and momentum checks (default 1e-6)")
     check.set_defaults(func=_check)
+
+    from tfcontact.sweep.cli import add_sweep_parser
+
+    add_sweep_parser(sub)
 
     args = parser.parse_args(argv)  # a usage error exits 2 here, with one line
     from tfcontact.interrupt import raise_on_sigterm
