@@ -41,11 +41,8 @@ import numpy as np  # noqa: E402
 
 from tfcontact.ocp.contact import ContactSolverOptions, solve_contact  # noqa: E402
 from tfcontact.scenes.hopper import hopper_options, hopper_problem, hopper_task  # noqa: E402
-from tfcontact.timefreezing import (  # noqa: E402
-    ComplementarityLagrangianSystem,
-    Contact,
-    replay_controls,
-)
+from tfcontact.timefreezing import ComplementarityLagrangianSystem, Contact  # noqa: E402
+from tfcontact.verify import replay_controls  # noqa: E402
 
 
 def run_tfcontact(options: ContactSolverOptions, method: str) -> dict:

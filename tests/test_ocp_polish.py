@@ -13,7 +13,7 @@ from tfcontact.errors import InvalidInput
 from tfcontact.ocp import polish
 from tfcontact.scenes.monoped_exact import saved_phases, verify_saved
 from tfcontact.scenes.particles import G, painleve_rod, point_mass
-from tfcontact.timefreezing.reference import _planar_impulse_flow
+from tfcontact.verify import planar_impulse_flow
 
 SAVED_PLAN = Path(__file__).resolve().parents[1] / "benchmarks" / "monoped_exact_plan.npz"
 RK4_PLAN = SAVED_PLAN.with_name("monoped_exact_rk4_plan.npz")  # the Radau levels' start
@@ -134,7 +134,7 @@ def test_touchdown_rows_hold_exactly_when_the_impulse_flow_ends_in_stick():
         v_n, v_t = -rng.uniform(0.1, 2.0), rng.normal()
         mu = rng.uniform(0.2, 1.0)
         sign = 1.0 if v_t >= 0 else -1.0
-        lam = np.array(_planar_impulse_flow(w, v_n, v_t, mu))
+        lam = np.array(planar_impulse_flow(w, v_n, v_t, mu))
         sticks = abs(v_t + (w @ lam)[1]) < 1e-9
         rows = [big - small for big, small in polish.touchdown_rows(w, v_n, v_t, sign, mu)]
         if w[0, 0] - sign * mu * w[0, 1] <= 0:

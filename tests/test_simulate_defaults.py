@@ -23,7 +23,8 @@ from tfcontact.fesd import (
 )
 from tfcontact.mpcc import Homotopy
 from tfcontact.scenes.particles import G, point_mass
-from tfcontact.timefreezing import Inelastic, simulate_impacts, time_freeze, to_physical_time
+from tfcontact.timefreezing import Inelastic, time_freeze, to_physical_time
+from tfcontact.verify import simulate_impacts
 
 # Relaxed complementarity lets the particle sink about 1.2e-5 m while frozen, and the
 # clock creeps through the frozen piece (2e-6 s): both show in the state after the impact.

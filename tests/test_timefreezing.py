@@ -33,14 +33,17 @@ from tfcontact.timefreezing import (
     elastic_damping,
     frozen_duration,
     hysteresis_system,
-    replay_controls,
-    simulate_impacts,
     time_freeze,
     to_physical_time,
     with_lagrange_cost,
     with_speed_of_time,
 )
-from tfcontact.timefreezing.reference import _planar_impulse_flow
+from tfcontact.verify import (
+    StackedFunction,
+    planar_impulse_flow,
+    replay_controls,
+    simulate_impacts,
+)
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -617,13 +620,11 @@ def test_reference_terms_through_the_call_buffer_equal_the_function_call():
     """The simulator's buffered evaluation (stacked, densified, column-major outputs; an
     empty input) gives each output of `Function.__call__` in its shape, and a later call
     does not overwrite an earlier result."""
-    from tfcontact.timefreezing.reference import _StackedFunction
-
     x, u = ca.SX.sym("x", 3), ca.SX.sym("u", 0)
     sparse = ca.SX(3, 2)
     sparse[0, 1], sparse[2, 0] = x[0] * x[1], ca.sin(x[2])
     outputs = [ca.vertcat(x[0] ** 2, x[1] - x[2]), sparse, ca.SX(1.5)]
-    stacked = _StackedFunction("terms", [x, u], outputs)
+    stacked = StackedFunction("terms", [x, u], outputs)
     direct = ca.Function("direct", [x, u], outputs)
     first = stacked([0.3, -1.2, 0.7], np.zeros(0))
     second = stacked([2.0, 0.5, -0.4], np.zeros(0))
@@ -1058,7 +1059,7 @@ def test_impulse_flow_never_jams_and_dissipates():
         mu = rng.uniform(0.1, 2.0)
         v_c = np.array([-rng.uniform(0.01, 3.0), rng.normal()])
         painleve += w[0, 0] - mu * np.sign(v_c[1]) * w[0, 1] <= 0
-        lam = np.array(_planar_impulse_flow(w, v_c[0], v_c[1], mu))
+        lam = np.array(planar_impulse_flow(w, v_c[0], v_c[1], mu))
         post = v_c + w @ lam
         assert abs(post[0]) <= 1e-12 * max(1.0, abs(v_c).max())
         assert lam[0] >= 0 and abs(lam[1]) <= mu * lam[0] * (1 + 1e-12)

@@ -48,11 +48,11 @@ from tfcontact.timefreezing import (
     ComplementarityLagrangianSystem,
     PhysicalTrajectory,
     TimeFreezingSystem,
-    replay_controls,
     to_physical_time,
     with_lagrange_cost,
     with_speed_of_time,
 )
+from tfcontact.verify import replay_controls
 
 
 def _vector(value: object, n: int, default: float, name: str) -> np.ndarray:

@@ -399,7 +399,7 @@ class _Dynamics:
 def touchdown_rows(w, v_n, v_t, sign: float, mu, cone_margin=1.0) -> list[tuple]:
     """Pairs (a, b), each meaning a >= b, under which an inelastic planar impact with
     Delassus matrix w and contact velocities (v_n < 0, v_t) ends in stick, by the
-    reference's impulse flow (`tfcontact.timefreezing.reference`): slip at
+    reference's impulse flow (`tfcontact.verify.reference`): slip at
     lambda_t = -s mu lambda_n (s the sign of v_t) until v_t stops, before v_n does; then
     stick. With the rates r_n = W_nn - s mu W_nt > 0 and r_t = s (s mu W_tt - W_tn) > 0 of
     v_n and |v_t| per unit lambda_n: |v_t| r_n <= -v_n r_t, and |W_tn| <= mu W_tt for the

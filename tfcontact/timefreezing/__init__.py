@@ -10,8 +10,9 @@ stops while they act. Entry points:
 * `hysteresis_system(...)`: a two-mode hysteresis -> `TimeFreezingSystem` (Stewart, Voronoi).
 * `with_speed_of_time`, `with_lagrange_cost`: the OCP layer's transformations.
 * `to_physical_time`: numerical-time solutions -> physical time with impacts as jumps.
-* `simulate_impacts`: an event-detecting reference simulation of the original system.
-* `replay_controls`: the same with a plan's piecewise constant controls.
+
+The event-detecting simulator of the original system with exact impacts, used to check
+plans, is in `tfcontact.verify` (`simulate_impacts`, `replay_controls`).
 """
 
 from tfcontact.timefreezing.builder import time_freeze
@@ -31,12 +32,6 @@ from tfcontact.timefreezing.physical import (
     PhysicalTrajectory,
     to_physical_time,
 )
-from tfcontact.timefreezing.reference import (
-    ReferenceImpact,
-    ReferenceSimulation,
-    replay_controls,
-    simulate_impacts,
-)
 from tfcontact.timefreezing.system import (
     TimeFreezingSystem,
     with_lagrange_cost,
@@ -53,8 +48,6 @@ __all__ = [
     "Impact",
     "Inelastic",
     "PhysicalTrajectory",
-    "ReferenceImpact",
-    "ReferenceSimulation",
     "TimeFreezingSystem",
     "elastic_damping",
     "from_robot",
@@ -62,8 +55,6 @@ __all__ = [
     "hysteresis_system",
     "normal_spring",
     "push_speed",
-    "replay_controls",
-    "simulate_impacts",
     "time_freeze",
     "to_physical_time",
     "with_lagrange_cost",

@@ -157,7 +157,7 @@ class _BudgetExceeded(Exception):
     """The simulation used up its evaluation budget (caught in `simulate_impacts`)."""
 
 
-class _StackedFunction:
+class StackedFunction:
     """A CasADi function of dense vectors, its outputs stacked in one dense vector and
     evaluated through CasADi's call buffer: 3-8 us a call against 50-100 us for
     `Function.__call__` and its DM conversions, and a simulation makes thousands."""
@@ -205,7 +205,7 @@ class _Model:
         drift_t = ca.mtimes(ca.jacobian(vt, q), v) if self.n_t else ca.SX(0, 1)
         jac = ca.horzcat(normal, tangents)
         minv_jac = cls.solve_mass(jac)
-        self._terms = _StackedFunction(
+        self._terms = StackedFunction(
             "reference_terms", [ca.vertcat(q, v), u],
             [cls.acceleration, minv_jac, jac, ca.vertcat(drift_n, drift_t), contact.gap])
         self.calls = 0
@@ -495,7 +495,7 @@ def _simulate_elastic_contacts(
     q, v, u = cls.q, cls.v, cls.u
     normals = ca.horzcat(*[c.normal for c in cls.contacts])
     gaps = ca.vertcat(*[c.gap for c in cls.contacts])
-    terms = _StackedFunction("reference_terms", [ca.vertcat(q, v), u],
+    terms = StackedFunction("reference_terms", [ca.vertcat(q, v), u],
                              [cls.acceleration, cls.solve_mass(normals), normals, gaps])
     restitution = np.array([c.restitution for c in cls.contacts])
     calls = 0
@@ -654,7 +654,7 @@ def _impact_without_collision(model: _Model, x: np.ndarray, u: np.ndarray):
 
     There the slip has no consistent normal force (lambda_n = -phi / rate < 0). The
     impulse flow from v_n = 0 slips, which deepens the approach, until v_t stops (it always
-    does, see `_planar_impulse_flow`), then sticks until v_n = 0: both contact velocities
+    does, see `planar_impulse_flow`), then sticks until v_n = 0: both contact velocities
     end at zero, so Lambda = -W^-1 (v_n, v_t), which lies in the cone (|Lambda_t| /
     Lambda_n = W_nn / |W_nt| <= mu there).
     """
@@ -780,7 +780,7 @@ def _phase(model: _Model, mode: str, direction, control, surface: float = 0.0):
     return rhs, [lift_off, cone]
 
 
-def _planar_impulse_flow(w: np.ndarray, vn: float, vt: float, mu: float):
+def planar_impulse_flow(w: np.ndarray, vn: float, vt: float, mu: float):
     """Normal and tangential impulse of an inelastic planar impact by the impulse flow.
 
     w: the 2x2 Delassus matrix [n b]^T M^{-1} [n b]; (vn, vt): contact velocities before
@@ -850,7 +850,7 @@ def _impact(model: _Model, x: np.ndarray, u: np.ndarray, rest_velocity: float):
                 f"got B^T M^-1 n = {cross}, B^T M^-1 B = {w_t.tolist()}"
             )
     if not orthogonal:  # an inelastic planar contact coupled through M(q): a leg
-        lam_n, lam_t_1 = _planar_impulse_flow(jac.T @ minv_jac, vn,
+        lam_n, lam_t_1 = planar_impulse_flow(jac.T @ minv_jac, vn,
                                               float(tangents[:, 0] @ v), model.mu)
         lam_t = np.array([lam_t_1])
     else:
