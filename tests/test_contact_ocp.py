@@ -6,9 +6,10 @@ import pytest
 
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp import ContactProblem, ContactSolverOptions
-from tfcontact.ocp.contact import _perturbed, _segments, _transcribe, painleve_note
+from tfcontact.ocp.contact import _perturbed, _segments, _transcribe
 from tfcontact.scenes.particles import painleve_rod, point_mass
 from tfcontact.timefreezing import time_freeze, with_speed_of_time
+from tfcontact.verify import painleve_note
 
 
 @pytest.fixture

@@ -3,7 +3,7 @@ import pytest
 
 from tfcontact.fesd import RadauIIA
 from tfcontact.fesd.tableau import as_tableau
-from tfcontact.ocp.verify import (
+from tfcontact.verify import (
     SLIP_THRESHOLD,
     Verification,
     clock_checks,

@@ -18,7 +18,7 @@ from tfcontact.ocp.contact import (
 )
 from tfcontact.ocp.problem import BoundaryHook, Constraint, OptimalControlProblem
 from tfcontact.ocp.solve import OcpBuild, OcpResult, Transcription, build, solve
-from tfcontact.ocp.verify import Verification
+from tfcontact.verify import Verification
 
 __all__ = [
     "Attempt",

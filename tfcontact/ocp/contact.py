@@ -35,14 +35,6 @@ from tfcontact.mpcc import Homotopy, Ipopt, MpccStatus, Relaxation, Scholtes
 from tfcontact.ocp.goals import Goal, Motion, TaskReport, check_goals
 from tfcontact.ocp.problem import Constraint, OptimalControlProblem
 from tfcontact.ocp.solve import OcpResult, Transcription, solve
-from tfcontact.ocp.verify import (
-    SLIP_THRESHOLD,
-    Verification,
-    clock_checks,
-    collocation_impulses,
-    friction_cone_violation,
-    maximal_dissipation_violation,
-)
 from tfcontact.timefreezing import (
     FROZEN_RATE_TOL,
     ComplementarityLagrangianSystem,
@@ -52,7 +44,16 @@ from tfcontact.timefreezing import (
     with_lagrange_cost,
     with_speed_of_time,
 )
-from tfcontact.verify import replay_controls
+from tfcontact.verify import (
+    SLIP_THRESHOLD,
+    Verification,
+    clock_checks,
+    collocation_impulses,
+    friction_cone_violation,
+    maximal_dissipation_violation,
+    painleve_note,
+    replay_controls,
+)
 
 
 def _vector(value: object, n: int, default: float, name: str) -> np.ndarray:
@@ -762,29 +763,6 @@ def verify_plan(
         defect_sum=defect_sum, open_loop_amplification=amplification,
         open_loop_unstable=bool(end_state_ok and deviation > options.end_state_tolerance),
     )
-
-
-def painleve_note(cls: ComplementarityLagrangianSystem, q_samples: np.ndarray,
-                  closed: np.ndarray) -> str | None:
-    """A note on the closed-contact samples (`q_samples` (S, n_q), `closed` (S, n_c)) where
-    a frictional contact is ill-posed (`cls.function("painleve_margins")` < 0), or None.
-    There a slip has no unique contact force: the plan's forces are not Coulomb's, and the
-    exact replay may jam."""
-    frictional = [i for i, c in enumerate(cls.contacts) if c.has_friction and closed[:, i].any()]
-    if not frictional:
-        return None
-    margins = np.asarray(cls.function("painleve_margins")(q_samples.T)).T
-    parts = []
-    for i in frictional:
-        inside = closed[:, i] & (margins[:, i] < 0)
-        if inside.any():
-            parts.append(f"contact {cls.contacts[i].name!r} at {int(inside.sum())} of "
-                         f"{int(closed[:, i].sum())} closed samples (down to "
-                         f"{margins[inside, i].min():.3g})")
-    if not parts:
-        return None
-    return ("Painleve: the frictional contact is ill-posed (n^T M^-1 n - mu ||B^T M^-1 n|| "
-            "< 0) for " + "; ".join(parts) + ": a slip there has no unique contact force")
 
 
 def _end_state_check(plan: ReplayedPlan, tolerance: float, deviation: float,

@@ -62,7 +62,7 @@ from tfcontact.ocp.contact import (
     _reference_deviation,
     _state_indices,
 )
-from tfcontact.ocp.verify import Verification, friction_cone_violation
+from tfcontact.verify import Verification, friction_cone_violation
 
 STICK, FLIGHT = "stick", "flight"
 PROGRESS_EVERY = 250

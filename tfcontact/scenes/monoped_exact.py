@@ -59,7 +59,6 @@ from tfcontact.ocp.polish import (
     refined_substeps,
     verify_polished,
 )
-from tfcontact.ocp.verify import Verification
 from tfcontact.scenes.monoped import (
     FULL_TASK,
     MonopedProblem,
@@ -67,6 +66,7 @@ from tfcontact.scenes.monoped import (
     monoped_options,
     monoped_problem,
 )
+from tfcontact.verify import Verification
 
 EXACT_TASK = dataclasses.replace(FULL_TASK, hole_half_width=0.25, hole_form="ellipse")
 """The task of `full_exact_plan`: TF-9 (T = 2.5 s, N = 20, |u| <= 60, q(T) = (3, 0.4, 0, 0))

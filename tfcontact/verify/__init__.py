@@ -6,11 +6,24 @@ impacts), never the time-freezing modes, so that an error in those modes shows u
 
 * `simulate_impacts`, `replay_controls`: an event-detecting simulator of the original
   system with exact impacts (`tfcontact.verify.reference`).
+* the physical checks (`tfcontact.verify.checks`): contact impulses recovered from the
+  momentum balance (`contact_impulses`, `collocation_impulses`), the friction cone, Coulomb's
+  maximal dissipation, the clock, Painleve's ill-posed contacts.
+* `Verification`: the outcome of the checks of one plan.
 
 Layering: `tfcontact.verify` reads the time-freezing layer (the CLS) and nothing above it;
 `tfcontact.ocp` calls it, and it never imports `tfcontact.ocp`.
 """
 
+from tfcontact.verify.checks import (
+    SLIP_THRESHOLD,
+    clock_checks,
+    collocation_impulses,
+    contact_impulses,
+    friction_cone_violation,
+    maximal_dissipation_violation,
+    painleve_note,
+)
 from tfcontact.verify.reference import (
     END_GAP_TOLERANCE,
     ReferenceImpact,
@@ -20,12 +33,21 @@ from tfcontact.verify.reference import (
     replay_controls,
     simulate_impacts,
 )
+from tfcontact.verify.result import Verification
 
 __all__ = [
     "END_GAP_TOLERANCE",
+    "SLIP_THRESHOLD",
     "ReferenceImpact",
     "ReferenceSimulation",
     "StackedFunction",
+    "Verification",
+    "clock_checks",
+    "collocation_impulses",
+    "contact_impulses",
+    "friction_cone_violation",
+    "maximal_dissipation_violation",
+    "painleve_note",
     "planar_impulse_flow",
     "replay_controls",
     "simulate_impacts",

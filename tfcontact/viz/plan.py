@@ -10,7 +10,7 @@ the interval holding each sample. Contact data come from the plan's CLS:
   `to_physical_time` ([AUTO23] eq. (19));
 * force [N] on every running interval where a contact is closed (gap <= `closed_gap`),
   from the momentum balance in physical time (M dv - int f_v dt) / dt = J^T lambda
-  (`tfcontact.ocp.verify.contact_impulses`), at the interval's first sample.
+  (`tfcontact.verify.contact_impulses`), at the interval's first sample.
 
 Impulses and forces are given in the world frame: Lambda_n n_w + Lambda_t T_w with the
 world normal n_w and tangents T_w of each contact (`directions`; default: flat ground,
@@ -174,8 +174,8 @@ def trajectory_from_result(
     Raises:
         InvalidInput: the robot's contacts cannot be matched with the CLS's contacts.
     """
-    from tfcontact.ocp.verify import contact_impulses
     from tfcontact.timefreezing import FROZEN_RATE_TOL
+    from tfcontact.verify import contact_impulses
 
     robot = robot_spec if isinstance(robot_spec, dict) else robot_spec.to_dict()
     scene = {"terrain": {"type": "flat", "height": 0.0}} if scene is None else dict(scene)
