@@ -6,10 +6,10 @@ import pytest
 
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp import ContactProblem, ContactSolverOptions
-from tfcontact.ocp.contact import _perturbed, _segments, _transcribe
+from tfcontact.ocp.contact import _perturbed, _transcribe
 from tfcontact.scenes.particles import painleve_rod, point_mass
 from tfcontact.timefreezing import time_freeze, with_speed_of_time
-from tfcontact.verify import painleve_note
+from tfcontact.verify import defect_segments, painleve_note
 
 
 @pytest.fixture
@@ -89,17 +89,17 @@ def test_a_restart_perturbs_the_guess_but_not_the_start_state(particle):
 def test_local_defect_segments_run_past_boundaries_without_a_physical_state():
     """Two finite elements per interval; True marks a frozen element (clock at rest)."""
     running = np.zeros(6, dtype=bool)
-    assert _segments(np.array([0.0, 1.0, 2.0, 3.0]), running) == [(0, 1), (1, 2), (2, 3)]
+    assert defect_segments(np.array([0.0, 1.0, 2.0, 3.0]), running) == [(0, 1), (1, 2), (2, 3)]
     # an impact across boundary 1 (frozen on both sides): no physical state there
     impact = running.copy()
     impact[[1, 2]] = True
-    assert _segments(np.array([0.0, 1.0, 2.0, 3.0]), impact) == [(0, 2), (2, 3)]
+    assert defect_segments(np.array([0.0, 1.0, 2.0, 3.0]), impact) == [(0, 2), (2, 3)]
     # frozen only before boundary 1: the impact ends on it, the state there is physical
-    assert _segments(np.array([0.0, 1.0, 2.0, 3.0]), np.eye(6, dtype=bool)[1]) == [
+    assert defect_segments(np.array([0.0, 1.0, 2.0, 3.0]), np.eye(6, dtype=bool)[1]) == [
         (0, 1), (1, 2), (2, 3)]
     # an interval the clock does not move in adds nothing, inside or at the end
-    assert _segments(np.array([0.0, 1.0, 1.0, 2.0]), running) == [(0, 1), (1, 3)]
-    assert _segments(np.array([0.0, 1.0, 2.0, 2.0]), running) == [(0, 1), (1, 3)]
+    assert defect_segments(np.array([0.0, 1.0, 1.0, 2.0]), running) == [(0, 1), (1, 3)]
+    assert defect_segments(np.array([0.0, 1.0, 2.0, 2.0]), running) == [(0, 1), (1, 3)]
 
 
 def test_painleve_note_names_the_ill_posed_closed_samples():

@@ -257,10 +257,10 @@ def test_an_open_loop_deviation_the_amplification_does_not_explain_fails(standin
     not amplify errors (a kick moved its end by the kick itself), its 17.5 could not come
     from the plan's 6.5e-5 of local defects, and the end-state check fails."""
     from tfcontact.ocp import contact
+    from tfcontact.verify import replay
 
     mp, options, result = standing_plan
-    monkeypatch.setattr(contact, "_open_loop_sensitivity",
-                        lambda plan, end, kick: kick)
+    monkeypatch.setattr(replay, "open_loop_sensitivity", lambda plan, end, kick: kick)
     v = contact.verify_plan(mp.problem, result.system, result.ocp, result.physical, options)
     assert v.defect_sum < 1e-3 and v.open_loop_amplification == pytest.approx(1.0)
     assert not v.open_loop_unstable and not v.passed

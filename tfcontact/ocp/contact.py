@@ -37,7 +37,6 @@ from tfcontact.ocp.problem import Constraint, OptimalControlProblem
 from tfcontact.ocp.solve import OcpResult, Transcription, solve
 from tfcontact.timefreezing import (
     FROZEN_RATE_TOL,
-    ComplementarityLagrangianSystem,
     PhysicalTrajectory,
     TimeFreezingSystem,
     to_physical_time,
@@ -46,13 +45,17 @@ from tfcontact.timefreezing import (
 )
 from tfcontact.verify import (
     SLIP_THRESHOLD,
+    ReplayedPlan,
     Verification,
     clock_checks,
     collocation_impulses,
+    defect_segments,
+    end_state_check,
     friction_cone_violation,
+    local_defects,
     maximal_dissipation_violation,
     painleve_note,
-    replay_controls,
+    reference_deviation,
 )
 
 
@@ -470,34 +473,6 @@ def _state_indices(system: TimeFreezingSystem) -> list[int]:
             + list(range(system.v_index.start, system.v_index.stop)))
 
 
-@dataclass(frozen=True, eq=False)
-class ReplayedPlan:
-    """What the replay checks read of a plan: its physical controls on a grid of clock
-    values, its states there and its start.
-
-    Attributes:
-        cls: the original system (impacts, friction).
-        x0: the start state (q0, v0).
-        clocks: physical times of the control-interval boundaries, (N + 1,).
-        states: the plan's (q, v) at those boundaries, (N + 1, 2 n_q).
-        controls: the physical controls per interval, (N, n_u).
-        horizon: the physical horizon T [s].
-    """
-
-    cls: ComplementarityLagrangianSystem
-    x0: np.ndarray
-    clocks: np.ndarray
-    states: np.ndarray
-    controls: np.ndarray
-    horizon: float
-
-    def replay(self, x0: np.ndarray | None = None):
-        """The controls replayed by the event-detecting reference from x0 (default: the
-        plan's start)."""
-        return replay_controls(self.cls, self.x0 if x0 is None else x0, self.clocks,
-                               self.controls, self.horizon, rtol=1e-10, atol=1e-11)
-
-
 def _replayed(problem: ContactProblem, system: TimeFreezingSystem,
               ocp: OcpResult) -> ReplayedPlan:
     """A time-freezing plan's controls between its clock values at the control-interval
@@ -507,106 +482,6 @@ def _replayed(problem: ContactProblem, system: TimeFreezingSystem,
         clocks=ocp.x_intervals[:, system.clock_index],
         states=ocp.x_intervals[:, _state_indices(system)],
         controls=ocp.u[:, :system.cls.n_u], horizon=problem.horizon)
-
-
-def _reference_deviation(plan: ReplayedPlan, end_state: np.ndarray,
-                         window: float = 0.0) -> tuple[float, str, np.ndarray]:
-    """End-state deviation of the plan from the event-detecting reference simulation, the
-    method's description and the reference's state at T. An impact of the reference
-    within `window` of T counts on either side of it."""
-    reference = plan.replay()
-    if reference.status != "success":
-        raise SolveFailed(f"reference simulation stopped: {reference.message}", reference)
-    deviation, side = reference.deviation_at(plan.horizon, end_state, window)
-    times = np.round(reference.impact_times, 4).tolist()
-    method = (f"event-detecting reference (DOP853, exact impacts), {len(times)} impacts at "
-              f"t = {times} s")
-    if reference.end_impacts:
-        method += f", and one at T (the plan ends {side or 'before'} it)"
-    return deviation, method, reference.x[-1]
-
-
-LOCAL_DEFECT_IMPACT_WINDOW = 0.01
-"""An impact within this fraction of a control interval of a segment's end counts on
-either side of it in the local defects (`Verification.local_defects`)."""
-
-SENSITIVITY_KICK = 1e-3
-"""The open-loop amplification replays start with every velocity moved by this fraction of
-the end-state tolerance (`Verification.open_loop_amplification`)."""
-
-
-def _segments(clocks: np.ndarray, frozen: np.ndarray) -> list[tuple[int, int]]:
-    """The (first, last + 1) control intervals of the local defects' segments.
-
-    A segment starts at a boundary that holds a physical state and runs to the next one.
-    A boundary with frozen finite elements on both sides is in the middle of an impact (no
-    physical state equals it), and one the clock has not moved to since the segment's
-    start adds nothing to check: the segment runs on past both.
-    """
-    n_int = len(clocks) - 1
-    by_interval = frozen.reshape(n_int, -1)
-    mid_impact = np.zeros(n_int + 1, dtype=bool)
-    mid_impact[1:-1] = by_interval[:-1, -1] & by_interval[1:, 0]
-    segments: list[tuple[int, int]] = []
-    start = 0
-    for k in range(1, n_int + 1):
-        still = clocks[k] - clocks[start] <= 1e-12
-        if k < n_int and (mid_impact[k] or still):
-            continue
-        if k == n_int and still and segments:  # the plan ends frozen: extend the last one
-            start = segments.pop()[0]
-        segments.append((start, k))
-        start = k
-    return segments
-
-
-def _local_defects(plan: ReplayedPlan, segments: list[tuple[int, int]],
-                   gap_tolerance: float) -> tuple[float, ...]:
-    """Per control interval: the deviation at its end of the reference restarted from the
-    plan's own state at its segment's start (`_segments`) and run with the plan's
-    controls; nan where the segment runs on, inf where the reference could not simulate
-    it (a jam, a start it rejects)."""
-    clocks, states = plan.clocks, plan.states
-    defects = np.full(len(clocks) - 1, np.nan)
-    for first, end in segments:
-        duration = clocks[end] - clocks[first]
-        if duration <= 1e-12:
-            continue  # the whole plan frozen: nothing physical to compare
-        # Run a little past the segment's end, so that an impact the plan puts on the
-        # boundary and the reference just after it is compared on both sides.
-        window = LOCAL_DEFECT_IMPACT_WINDOW * duration / (end - first)
-        try:
-            local = replay_controls(plan.cls, states[first],
-                                    clocks[first:end + 1] - clocks[first],
-                                    plan.controls[first:end], float(duration + window),
-                                    rtol=1e-10, atol=1e-11, start_gap_tolerance=gap_tolerance,
-                                    max_rhs_evaluations=200_000 * (end - first))
-        except TfcontactError:
-            local = None
-        if local is None or local.status != "success":
-            defects[end - 1] = np.inf
-            continue
-        defects[end - 1] = local.deviation_at(duration, states[end], window)[0]
-    return tuple(float(d) for d in defects)
-
-
-def _open_loop_sensitivity(plan: ReplayedPlan, reference_end: np.ndarray,
-                           kick: float) -> float:
-    """How far the replay's end state moves when every start velocity moves by +-kick
-    (the larger of the two; inf if a kicked replay stops)."""
-    n_q = plan.cls.n_q
-    moved = []
-    for sign in (1.0, -1.0):
-        x0 = plan.x0.copy()
-        x0[n_q:] += sign * kick
-        try:
-            kicked = plan.replay(x0)
-        except TfcontactError:
-            return float("inf")
-        if kicked.status != "success":
-            return float("inf")
-        moved.append(float(np.max(np.abs(kicked.x[-1] - reference_end))))
-    return max(moved)
 
 
 def _fesd_deviation(problem: ContactProblem, system: TimeFreezingSystem, ocp: OcpResult,
@@ -644,7 +519,7 @@ def verify_plan(
     original system with impacts (`simulate_impacts`, `options.verify_method`), or else
     with the FESD simulator on a grid `verify_refinement` times finer with a higher-order
     scheme, and compares the end states (with the reference, an open-loop unstable plan
-    may pass on its local defects instead, see `_end_state_check`); checks the gaps on
+    may pass on its local defects instead, see `end_state_check`); checks the gaps on
     the plan, the friction cone of the contact impulses recovered from the momentum
     balance on the plan's collocation polynomials (M v' - f_v t' = J^T lambda, using the
     CLS's own M, f_v and contact directions, not the time-freezing modes), Coulomb's
@@ -654,22 +529,22 @@ def verify_plan(
     cls = system.cls
     notes: list[str] = []
     deviation, method = float("nan"), ""
-    local_defects: tuple[float, ...] = ()
+    defects: tuple[float, ...] = ()
     reference_end = None
     # The finite elements where the clock runs (the others are frozen pieces).
     running = np.diff(ocp.x[:, system.clock_index]) > FROZEN_RATE_TOL * np.diff(ocp.t)
     replayed = _replayed(problem, system, ocp)
     if options.verify_method in ("auto", "reference"):
         try:
-            deviation, method, reference_end = _reference_deviation(
+            deviation, method, reference_end = reference_deviation(
                 replayed, ocp.x[-1, _state_indices(system)])
         except TfcontactError as error:
             if options.verify_method == "reference":
                 raise
             notes.append(f"event-detecting reference not applicable ({error}); FESD used")
         # also where the full replay stopped (a jam): the intervals before it still tell
-        local_defects = _local_defects(
-            replayed, _segments(replayed.clocks, ~running), options.gap_tolerance)
+        defects = local_defects(
+            replayed, defect_segments(replayed.clocks, ~running), options.gap_tolerance)
     if not method:
         deviation, method = _fesd_deviation(problem, system, ocp, options, notes)
     # Gaps on the physical plan only: inside a frozen piece an elastic auxiliary spring
@@ -748,9 +623,8 @@ def verify_plan(
     tolerances = {"end_state": options.end_state_tolerance, "gap": options.gap_tolerance,
                   "cone": options.cone_tolerance, "dissipation": options.cone_tolerance,
                   "clock": options.clock_tolerance}
-    end_state_ok, defect_sum, amplification = _end_state_check(
-        replayed, options.end_state_tolerance, deviation, local_defects, reference_end,
-        notes)
+    end_state_ok, defect_sum, amplification = end_state_check(
+        replayed, options.end_state_tolerance, deviation, defects, reference_end, notes)
     passed = (end_state_ok and min_gap >= -options.gap_tolerance
               and cone <= impulse_tolerance and dissipation <= impulse_tolerance
               and monotone and clock_error <= options.clock_tolerance)
@@ -759,44 +633,10 @@ def verify_plan(
         method=method,
         end_state_deviation=deviation, min_gap=min_gap, friction_cone_violation=cone,
         clock_monotone=monotone, clock_end_error=clock_error, tolerances=tolerances,
-        notes=tuple(notes), dissipation_violation=dissipation, local_defects=local_defects,
+        notes=tuple(notes), dissipation_violation=dissipation, local_defects=defects,
         defect_sum=defect_sum, open_loop_amplification=amplification,
         open_loop_unstable=bool(end_state_ok and deviation > options.end_state_tolerance),
     )
-
-
-def _end_state_check(plan: ReplayedPlan, tolerance: float, deviation: float,
-                     local_defects: tuple[float, ...], reference_end: np.ndarray | None,
-                     notes: list[str]) -> tuple[bool, float, float]:
-    """(passed, sum of the local defects, open-loop amplification) of the end-state check.
-
-    The open-loop replay from x0 passes within `tolerance`. Otherwise the plan still
-    passes when the dynamics, not the plan, make the replay part from it: the local
-    defects sum to within the tolerance (the replay could end at most that far away if
-    the dynamics did not amplify errors), and the replay's measured sensitivity to a kick
-    of its start velocities (end moved / kick), times the defects' sum, reaches the
-    deviation.
-    """
-    tol = tolerance
-    defects = np.asarray(local_defects, dtype=float)
-    checked = defects[~np.isnan(defects)]
-    defect_sum = float(checked.sum()) if checked.size else float("nan")
-    if deviation <= tol:
-        return True, defect_sum, float("nan")
-    if reference_end is None or not defect_sum <= tol:
-        return False, defect_sum, float("nan")
-    kick = SENSITIVITY_KICK * tol
-    sensitivity = _open_loop_sensitivity(plan, reference_end, kick)
-    amplification = sensitivity / kick
-    explained = amplification * defect_sum >= deviation
-    notes.append(
-        f"open-loop replay {deviation:.2e} from the plan, local defects sum to "
-        f"{defect_sum:.2e}; start velocities kicked by {kick:.0e} move the replay's end by "
-        f"{sensitivity:.2e} (x{amplification:.3g}): "
-        + ("the dynamics amplify the plan's local errors (open-loop unstable), the "
-           "end-state check passes on the local defects" if explained else
-           "that does not account for the deviation, the end-state check fails"))
-    return bool(explained), defect_sum, amplification
 
 
 def solve_contact(

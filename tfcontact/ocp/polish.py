@@ -52,17 +52,20 @@ from tfcontact import interrupt
 from tfcontact.errors import InvalidInput, TfcontactError, positive_int
 from tfcontact.fesd.tableau import RadauIIA
 from tfcontact.ocp.contact import (
-    LOCAL_DEFECT_IMPACT_WINDOW,
     ContactProblem,
     ContactResult,
     ContactSolverOptions,
-    ReplayedPlan,
-    _end_state_check,
-    _local_defects,
-    _reference_deviation,
     _state_indices,
 )
-from tfcontact.verify import Verification, friction_cone_violation
+from tfcontact.verify import (
+    LOCAL_DEFECT_IMPACT_WINDOW,
+    ReplayedPlan,
+    Verification,
+    end_state_check,
+    friction_cone_violation,
+    local_defects,
+    reference_deviation,
+)
 
 STICK, FLIGHT = "stick", "flight"
 PROGRESS_EVERY = 250
@@ -836,11 +839,11 @@ def _verify(problem: ContactProblem, *, clocks: np.ndarray, boundary_x: np.ndarr
     notes: list[str] = []
     window = LOCAL_DEFECT_IMPACT_WINDOW * horizon / n_int
     try:
-        deviation, method, reference_end = _reference_deviation(plan, boundary_x[-1], window)
+        deviation, method, reference_end = reference_deviation(plan, boundary_x[-1], window)
     except TfcontactError as error:
         deviation, method, reference_end = float("inf"), f"reference stopped ({error})", None
-    defects = _local_defects(plan, [(k, k + 1) for k in range(n_int)], options.gap_tolerance)
-    end_ok, defect_sum, amplification = _end_state_check(
+    defects = local_defects(plan, [(k, k + 1) for k in range(n_int)], options.gap_tolerance)
+    end_ok, defect_sum, amplification = end_state_check(
         plan, options.end_state_tolerance, deviation, defects, reference_end, notes)
     gaps = np.asarray(dyn.gap(node_x.T)).ravel()
     min_gap = float(gaps.min())

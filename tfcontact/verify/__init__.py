@@ -9,6 +9,8 @@ impacts), never the time-freezing modes, so that an error in those modes shows u
 * the physical checks (`tfcontact.verify.checks`): contact impulses recovered from the
   momentum balance (`contact_impulses`, `collocation_impulses`), the friction cone, Coulomb's
   maximal dissipation, the clock, Painleve's ill-posed contacts.
+* replays of a plan's controls (`tfcontact.verify.replay`): the open-loop end-state
+  deviation, the local defects per control interval, the open-loop amplification.
 * `Verification`: the outcome of the checks of one plan.
 
 Layering: `tfcontact.verify` reads the time-freezing layer (the CLS) and nothing above it;
@@ -33,22 +35,40 @@ from tfcontact.verify.reference import (
     replay_controls,
     simulate_impacts,
 )
+from tfcontact.verify.replay import (
+    LOCAL_DEFECT_IMPACT_WINDOW,
+    SENSITIVITY_KICK,
+    ReplayedPlan,
+    defect_segments,
+    end_state_check,
+    local_defects,
+    open_loop_sensitivity,
+    reference_deviation,
+)
 from tfcontact.verify.result import Verification
 
 __all__ = [
     "END_GAP_TOLERANCE",
+    "LOCAL_DEFECT_IMPACT_WINDOW",
+    "SENSITIVITY_KICK",
     "SLIP_THRESHOLD",
     "ReferenceImpact",
     "ReferenceSimulation",
+    "ReplayedPlan",
     "StackedFunction",
     "Verification",
     "clock_checks",
     "collocation_impulses",
     "contact_impulses",
+    "defect_segments",
+    "end_state_check",
     "friction_cone_violation",
+    "local_defects",
     "maximal_dissipation_violation",
+    "open_loop_sensitivity",
     "painleve_note",
     "planar_impulse_flow",
+    "reference_deviation",
     "replay_controls",
     "simulate_impacts",
 ]
