@@ -196,7 +196,7 @@ def main() -> None:
     n_tfcontact = len(rows)
     if not args.skip_nosnoc:
         try:
-            rows.append(run_nosnoc(options.end_state_tolerance))
+            rows.append(run_nosnoc(options.verify.end_state_tolerance))
         except ImportError:
             print("nosnoc is not installed (pip install -e '.[bench]'): skipped")
     lines = [

@@ -45,6 +45,7 @@ from tfcontact.scenes.monoped import (
     monoped_problem,
     monoped_task,
 )
+from tfcontact.verify import AutoReplay, FesdReplay, VerifyOptions
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -61,7 +62,7 @@ def solver_options(args: argparse.Namespace) -> ContactSolverOptions:
                   intermediate_tol=args.stepping_stones,
                   element_derivatives=args.element_derivatives,
                   linear_solver=args.linear_solver),
-        verify_refinement=args.verify_refinement,
+        verify=VerifyOptions(replay=AutoReplay(FesdReplay(refinement=args.verify_refinement))),
     )
 
 
@@ -276,7 +277,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="clock constraint at every interval or only at T "
                              "(authors' robot_ocp.m: only at T)")
     parser.add_argument("--hole-half-width", type=float, default=None)
-    parser.add_argument("--verify-refinement", type=int, default=plan.verify_refinement)
+    parser.add_argument("--verify-refinement", type=int, default=FesdReplay().refinement)
     parser.add_argument("--gap-scale", type=float, default=FULL_TASK.gap_scale,
                         help="K [1/s] of the gap's switching function K f_c")
     parser.add_argument("--out", type=Path, default=ROOT / "out" / "monoped")

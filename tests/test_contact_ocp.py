@@ -50,12 +50,8 @@ def test_bad_contact_problems_are_named(particle):
         ContactProblem(**{**base, "system": with_speed_of_time(particle)})
     with pytest.raises(InvalidInput, match="`running_cost` must be a scalar"):
         ContactProblem(**{**base, "running_cost": particle.u})
-    with pytest.raises(InvalidInput, match="`verify_method` must be one of"):
-        ContactSolverOptions(verify_method="exact")
-    with pytest.raises(InvalidInput, match="`verify_refinement` must be at least 1"):
-        ContactSolverOptions(verify_refinement=0)
-    with pytest.raises(InvalidInput, match="`gap_tolerance` must be positive"):
-        ContactSolverOptions(gap_tolerance=0.0)
+    with pytest.raises(InvalidInput, match="`verify` must be a VerifyOptions, got 'auto'"):
+        ContactSolverOptions(verify="auto")
     with pytest.raises(InvalidInput, match="`attempts` must be a positive integer"):
         ContactSolverOptions(attempts=0)
     with pytest.raises(InvalidInput, match="`attempts` must be a positive integer"):

@@ -200,4 +200,4 @@ def test_bench_task_with_loose_stepping_stones_passes_the_verification():
     steps = result.ocp.mpcc_result.history
     assert [s.intermediate for s in steps] == [True] * (len(steps) - 1) + [False]
     assert result.physical.gaps[:, 0].max() > 0.05  # it flies
-    assert result.verification.end_state_deviation <= options.end_state_tolerance
+    assert result.verification.end_state_deviation <= options.verify.end_state_tolerance

@@ -218,7 +218,7 @@ def test_an_open_loop_unstable_plan_passes_on_its_local_defects(standing_plan):
     accounts for that: the plan passes on its local defects, and the summary says so."""
     _, options, result = standing_plan
     v = result.verification
-    tol = options.end_state_tolerance
+    tol = options.verify.end_state_tolerance
     assert result.ocp.success, result.message
     assert np.max(np.abs(result.u)) < 1e-6  # standing needs no torque
     assert v.end_state_deviation > tol  # the open-loop replay falls over
@@ -245,7 +245,7 @@ def test_an_unstable_plan_with_a_wrong_interval_fails(standing_plan):
     tampered = replace(result.ocp, u=u)
     v = verify_plan(mp.problem, result.system, tampered, result.physical, options)
     defects = np.asarray(v.local_defects)
-    assert np.argmax(defects) == 4 and defects[4] > options.end_state_tolerance
+    assert np.argmax(defects) == 4 and defects[4] > options.verify.end_state_tolerance
     assert np.delete(defects, 4).max() < 1e-3
     assert not v.open_loop_unstable and np.isnan(v.open_loop_amplification)
     assert not v.passed

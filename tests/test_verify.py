@@ -1,16 +1,25 @@
+import casadi as ca
 import numpy as np
 import pytest
 
+from tfcontact.errors import IncompatibleOptions, InvalidInput
 from tfcontact.fesd import RadauIIA
 from tfcontact.fesd.tableau import as_tableau
+from tfcontact.mpcc import L1Penalty, Scholtes
 from tfcontact.verify import (
     SLIP_THRESHOLD,
+    AutoReplay,
+    ExactReplay,
+    FesdReplay,
     Verification,
+    VerifyOptions,
+    check_plan,
     clock_checks,
     collocation_impulses,
     contact_impulses,
     friction_cone_violation,
     maximal_dissipation_violation,
+    methods,
 )
 
 G = 9.81
@@ -228,3 +237,87 @@ def test_verification_without_a_dissipation_check_reports_nan():
     assert np.isnan(v.dissipation_violation)
     assert "maximal-dissipation violation nan N s" in v.summary()
     assert np.isnan(v.to_dict()["dissipation_violation"])
+
+
+def test_verify_options_take_a_replay_object_and_positive_tolerances():
+    """The replay method is a strategy object (no strings); bad values raise, naming the
+    argument and the value."""
+    default = VerifyOptions()
+    assert default.replay == AutoReplay(fallback=FesdReplay(
+        refinement=4, scheme=RadauIIA(3), relaxation=Scholtes()))
+    assert VerifyOptions(replay=FesdReplay(refinement=2, relaxation=L1Penalty())).replay \
+        .refinement == 2
+    with pytest.raises(InvalidInput, match=r"`replay` must be a Replay object \(ExactReplay\(\), "
+                                           r"FesdReplay\(\.\.\.\) or AutoReplay\(\)\), got 'fesd'"):
+        VerifyOptions(replay="fesd")
+    with pytest.raises(InvalidInput, match="`gap_tolerance` must be a positive number, got 0.0"):
+        VerifyOptions(gap_tolerance=0.0)
+    with pytest.raises(InvalidInput, match="`end_state_tolerance` must be a positive number, "
+                                           "got nan"):
+        VerifyOptions(end_state_tolerance=float("nan"))
+    with pytest.raises(InvalidInput, match="`refinement` must be a positive integer, got 0"):
+        FesdReplay(refinement=0)
+    with pytest.raises(InvalidInput, match="`scheme` must be a Scheme"):
+        FesdReplay(scheme=3)
+    with pytest.raises(InvalidInput, match="`relaxation` must be a Relaxation"):
+        FesdReplay(relaxation="scholtes")
+    with pytest.raises(InvalidInput, match="`fallback` must be a FesdReplay, got ExactReplay()"):
+        AutoReplay(fallback=ExactReplay())
+
+
+@pytest.fixture(scope="module")
+def pushed_particle():
+    """A particle pushed along the ground for 0.6 s (3 control intervals, no impact): a
+    solved time-freezing plan and what the checks read of it."""
+    from tfcontact.ocp import ContactProblem, ContactSolverOptions, solve_contact
+    from tfcontact.ocp.contact import time_freezing_plan
+    from tfcontact.scenes.particles import point_mass
+    from tfcontact.timefreezing import time_freeze
+
+    tf = time_freeze(point_mass(2, mu=0.5, a_n=9.81, controlled=True))
+    x = tf.y[tf.q_index][0]
+    problem = ContactProblem(system=tf, q0=[0.0, 0.0], v0=[0.0, 0.0], horizon=0.6,
+                             n_intervals=3, u_lower=-5.0, u_upper=5.0,
+                             running_cost=10 * (x - 0.2) ** 2 + 1e-2 * ca.sumsqr(tf.u))
+    options = ContactSolverOptions()
+    result = solve_contact(problem, options, verbose=False)
+    assert result.ocp.success, result.message
+    return time_freezing_plan(problem, result.system, result.ocp, result.physical, options)
+
+
+def test_each_replay_checks_a_plan_its_own_way(pushed_particle):
+    """The exact replay gives the local defects (one per control interval); the FESD replay
+    re-simulates on a finer grid and gives none; the other checks do not depend on the
+    replay (measured: deviations 1.7e-7 and 1.1e-7)."""
+    exact = check_plan(pushed_particle, VerifyOptions(replay=ExactReplay()))
+    fesd = check_plan(pushed_particle, VerifyOptions(replay=FesdReplay(refinement=2)))
+    auto = check_plan(pushed_particle)
+    assert exact.passed and fesd.passed and auto.summary() == exact.summary()
+    assert exact.method.startswith("event-detecting reference (DOP853, exact impacts)")
+    assert len(exact.local_defects) == 3 and max(exact.local_defects) < 1e-5
+    assert fesd.method == "FESD re-simulation, 6 steps x 3 elements, RadauIIA(stages=3)"
+    assert fesd.local_defects == () and np.isnan(fesd.defect_sum)
+    assert exact.end_state_deviation < 1e-5 and fesd.end_state_deviation < 1e-5
+    for name in ("min_gap", "friction_cone_violation", "dissipation_violation",
+                 "clock_end_error"):
+        assert getattr(exact, name) == getattr(fesd, name)
+
+
+def test_auto_replay_falls_back_to_fesd_where_the_reference_does_not_apply(pushed_particle,
+                                                                           monkeypatch):
+    """Where the exact reference raises (here made to: several frictional contacts are such
+    a case), `ExactReplay` raises and `AutoReplay` notes why and replays with its fallback;
+    the local defects (restarts of the reference per interval) are still computed."""
+    def not_applicable(plan, end_state, window=0.0):
+        raise IncompatibleOptions("several contacts with friction")
+
+    monkeypatch.setattr(methods, "reference_deviation", not_applicable)
+    with pytest.raises(IncompatibleOptions, match="several contacts with friction"):
+        check_plan(pushed_particle, VerifyOptions(replay=ExactReplay()))
+    auto = check_plan(pushed_particle, VerifyOptions(
+        replay=AutoReplay(fallback=FesdReplay(refinement=2))))
+    assert auto.passed and auto.method.startswith("FESD re-simulation, 6 steps")
+    assert auto.notes[0] == ("event-detecting reference not applicable (several contacts "
+                             "with friction); FESD used")
+    assert len(auto.local_defects) == 3 and max(auto.local_defects) < 1e-5
+

@@ -28,35 +28,21 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from tfcontact.errors import InvalidInput, SolveFailed, TfcontactError, positive_int
-from tfcontact.fesd import Fesd, RadauIIA, Scheme, simulate
+from tfcontact.errors import InvalidInput, SolveFailed, positive_int
+from tfcontact.fesd import Fesd, RadauIIA, Scheme
 from tfcontact.fesd.tableau import as_tableau
 from tfcontact.mpcc import Homotopy, Ipopt, MpccStatus, Relaxation, Scholtes
 from tfcontact.ocp.goals import Goal, Motion, TaskReport, check_goals
 from tfcontact.ocp.problem import Constraint, OptimalControlProblem
 from tfcontact.ocp.solve import OcpResult, Transcription, solve
 from tfcontact.timefreezing import (
-    FROZEN_RATE_TOL,
     PhysicalTrajectory,
     TimeFreezingSystem,
     to_physical_time,
     with_lagrange_cost,
     with_speed_of_time,
 )
-from tfcontact.verify import (
-    SLIP_THRESHOLD,
-    ReplayedPlan,
-    Verification,
-    clock_checks,
-    collocation_impulses,
-    defect_segments,
-    end_state_check,
-    friction_cone_violation,
-    local_defects,
-    maximal_dissipation_violation,
-    painleve_note,
-    reference_deviation,
-)
+from tfcontact.verify import TimeFreezingPlan, Verification, VerifyOptions, check_plan
 
 
 def _vector(value: object, n: int, default: float, name: str) -> np.ndarray:
@@ -196,9 +182,6 @@ class ContactProblem:
         return self.horizon if self.numerical_horizon is None else self.numerical_horizon
 
 
-VERIFY_METHODS = ("auto", "reference", "fesd")
-
-
 @dataclass(frozen=True)
 class ContactSolverOptions:
     """How a contact OCP is discretised and solved.
@@ -213,21 +196,9 @@ class ContactSolverOptions:
         relaxation: the MPCC relaxation.
         homotopy: the sigma schedule and complementarity tolerance.
         nlp: IPOPT settings.
-        verify_method: how the plan's controls are re-simulated: "reference" (the
-            event-detecting integration of the original system with impacts,
-            `simulate_impacts`: one contact, or several frictionless elastic ones), "fesd"
-            (the FESD simulator on a finer grid)
-            or "auto" (the reference where it applies, else FESD).
-        verify_refinement: the FESD re-simulation uses this many steps per control interval.
-        verify_scheme: the FESD re-simulation's IRK scheme.
-        verify_relaxation: the FESD re-simulation's relaxation (`L1Penalty()` needs one or
-            two NLPs per step where Scholtes needs one per decade of sigma).
-        end_state_tolerance, gap_tolerance, cone_tolerance, clock_tolerance: the checks'
-            tolerances (see `Verification`); `cone_tolerance` (which also bounds the
-            maximal-dissipation violation) is relative to the largest normal impulse of
-            the plan, because the impulses recovered from the plan's
-            collocation polynomials carry its relaxed complementarity and quadrature
-            errors, proportional to them.
+        verify: how the plan is checked (`tfcontact.verify.VerifyOptions`: the replay
+            method, e.g. `AutoReplay()`, `ExactReplay()` or `FesdReplay(refinement=4)`,
+            and the checks' tolerances).
         attempts: solves at most; a plan that fails (homotopy or checks) is solved again
             from its initial guess perturbed by `restart_noise` (seeded, so runs repeat).
             Which local solution IPOPT reaches depends on its path, and round-off moves
@@ -244,14 +215,7 @@ class ContactSolverOptions:
     relaxation: Relaxation = field(default_factory=Scholtes)
     homotopy: Homotopy = field(default_factory=lambda: Homotopy(tolerance=1e-7))
     nlp: Ipopt = field(default_factory=lambda: Ipopt(tol=1e-8, max_iter=2000))
-    verify_method: str = "auto"
-    verify_refinement: int = 4
-    verify_scheme: Scheme = field(default_factory=lambda: RadauIIA(3))
-    verify_relaxation: Relaxation = field(default_factory=Scholtes)
-    end_state_tolerance: float = 5e-2
-    gap_tolerance: float = 1e-3
-    cone_tolerance: float = 1e-2
-    clock_tolerance: float = 1e-6
+    verify: VerifyOptions = field(default_factory=VerifyOptions)
     attempts: int = 1
     restart_noise: float = 1e-4
 
@@ -260,16 +224,8 @@ class ContactSolverOptions:
         if not (np.isfinite(self.restart_noise) and self.restart_noise > 0):
             raise InvalidInput(
                 f"`restart_noise` must be a positive number, got {self.restart_noise!r}")
-        if self.verify_method not in VERIFY_METHODS:
-            raise InvalidInput(f"`verify_method` must be one of {VERIFY_METHODS}, got "
-                               f"{self.verify_method!r}")
-        if self.verify_refinement < 1:
-            raise InvalidInput(
-                f"`verify_refinement` must be at least 1, got {self.verify_refinement}")
-        for name in ("end_state_tolerance", "gap_tolerance", "cone_tolerance",
-                     "clock_tolerance"):
-            if not getattr(self, name) > 0:
-                raise InvalidInput(f"`{name}` must be positive, got {getattr(self, name)}")
+        if not isinstance(self.verify, VerifyOptions):
+            raise InvalidInput(f"`verify` must be a VerifyOptions, got {self.verify!r}")
 
 
 @dataclass(frozen=True)
@@ -468,44 +424,6 @@ def _warm_start(ocp: OptimalControlProblem, previous: ContactResult,
     return guess, (prev.mpcc_result.w.copy() if same else None)
 
 
-def _state_indices(system: TimeFreezingSystem) -> list[int]:
-    return (list(range(system.q_index.start, system.q_index.stop))
-            + list(range(system.v_index.start, system.v_index.stop)))
-
-
-def _replayed(problem: ContactProblem, system: TimeFreezingSystem,
-              ocp: OcpResult) -> ReplayedPlan:
-    """A time-freezing plan's controls between its clock values at the control-interval
-    boundaries (k T / N with the stagewise clock constraint)."""
-    return ReplayedPlan(
-        cls=system.cls, x0=np.concatenate([problem.q0, problem.v0]),
-        clocks=ocp.x_intervals[:, system.clock_index],
-        states=ocp.x_intervals[:, _state_indices(system)],
-        controls=ocp.u[:, :system.cls.n_u], horizon=problem.horizon)
-
-
-def _fesd_deviation(problem: ContactProblem, system: TimeFreezingSystem, ocp: OcpResult,
-                    options: ContactSolverOptions, notes: list[str]) -> tuple[float, str]:
-    """End-state deviation (q, v, clock) of the plan from an FESD re-simulation of its
-    controls on a finer grid with a higher-order scheme."""
-    n_int = problem.n_intervals
-    refine = options.verify_refinement
-    u_steps = np.repeat(ocp.u, refine, axis=0)
-    sim = simulate(
-        system.pss, ocp.x[0], horizon=problem.tau_horizon, n_steps=n_int * refine,
-        u=u_steps, scheme=options.verify_scheme,
-        n_finite_elements=options.n_finite_elements, homotopy=options.homotopy,
-        relaxation=options.verify_relaxation, nlp=options.nlp, throw=False,
-    )
-    idx = _state_indices(system) + [system.clock_index]
-    method = (f"FESD re-simulation, {n_int * refine} steps x {options.n_finite_elements} "
-              f"elements, {options.verify_scheme!r}")
-    if not sim.success:
-        notes.append(f"re-simulation did not converge: {sim.message}")
-        return float("inf"), method
-    return float(np.max(np.abs(sim.x[-1, idx] - ocp.x[-1, idx]))), method
-
-
 def verify_plan(
     problem: ContactProblem,
     system: TimeFreezingSystem,
@@ -513,130 +431,22 @@ def verify_plan(
     physical: PhysicalTrajectory,
     options: ContactSolverOptions,
 ) -> Verification:
-    """The independent checks of a contact plan (see `Verification`).
+    """The independent checks of a contact plan (`tfcontact.verify.check_plan` with
+    `options.verify`, see `Verification`)."""
+    return check_plan(time_freezing_plan(problem, system, ocp, physical, options),
+                      options.verify)
 
-    Re-simulates the plan's physical controls with the event-detecting reference of the
-    original system with impacts (`simulate_impacts`, `options.verify_method`), or else
-    with the FESD simulator on a grid `verify_refinement` times finer with a higher-order
-    scheme, and compares the end states (with the reference, an open-loop unstable plan
-    may pass on its local defects instead, see `end_state_check`); checks the gaps on
-    the plan, the friction cone of the contact impulses recovered from the momentum
-    balance on the plan's collocation polynomials (M v' - f_v t' = J^T lambda, using the
-    CLS's own M, f_v and contact directions, not the time-freezing modes), Coulomb's
-    maximal dissipation of those impulses where a closed contact slips (B^T v at the
-    elements' starts, stages and ends) and the clock.
-    """
-    cls = system.cls
-    notes: list[str] = []
-    deviation, method = float("nan"), ""
-    defects: tuple[float, ...] = ()
-    reference_end = None
-    # The finite elements where the clock runs (the others are frozen pieces).
-    running = np.diff(ocp.x[:, system.clock_index]) > FROZEN_RATE_TOL * np.diff(ocp.t)
-    replayed = _replayed(problem, system, ocp)
-    if options.verify_method in ("auto", "reference"):
-        try:
-            deviation, method, reference_end = reference_deviation(
-                replayed, ocp.x[-1, _state_indices(system)])
-        except TfcontactError as error:
-            if options.verify_method == "reference":
-                raise
-            notes.append(f"event-detecting reference not applicable ({error}); FESD used")
-        # also where the full replay stopped (a jam): the intervals before it still tell
-        defects = local_defects(
-            replayed, defect_segments(replayed.clocks, ~running), options.gap_tolerance)
-    if not method:
-        deviation, method = _fesd_deviation(problem, system, ocp, options, notes)
-    # Gaps on the physical plan only: inside a frozen piece an elastic auxiliary spring
-    # runs *inside* the obstacle by construction (the clock stands still there).
-    gap_fn = cls.function("gaps")
-    gaps = physical.gaps
-    stage_q = ocp.x_stages[running][:, :, system.q_index].reshape(-1, system.q_index.stop
-                                                                   - system.q_index.start)
-    stage_gaps = np.asarray(gap_fn(stage_q.T)).T if stage_q.size else gaps
-    min_gap = float(min(gaps.min(), stage_gaps.min()))
 
-    # Contact impulses from the momentum balance on the plan's collocation polynomials.
-    n_u = cls.n_u
-    n_fe = options.n_finite_elements
-    u = np.repeat(ocp.u[:, :n_u], n_fe, axis=0)
-    mass = cls.function("mass")
-    forces = cls.function("forces")
-    normals = cls.function("normals")
-    tangents = [cls.function(f"tangents_{i}") for i in range(cls.n_contacts)]
-
-    def jac(qk: np.ndarray) -> np.ndarray:
-        # Only closed contacts (gap within tolerance) can push: the columns of open ones
-        # are zero, so their impulses are 0 and opposite walls cannot cancel each other.
-        cols = []
-        nrm = np.asarray(normals(qk))
-        closed = np.asarray(gap_fn(qk)).ravel() <= options.gap_tolerance
-        for i in range(cls.n_contacts):
-            cols.append(nrm[:, i : i + 1] * closed[i])
-            if cls.contacts[i].n_tangents:
-                cols.append(np.asarray(tangents[i](qk)) * closed[i])
-        return np.hstack(cols)
-
-    tableau = ocp.build.discretization.tableau
-    impulses, fit = collocation_impulses(
-        ocp.x[:-1], ocp.x_stages, ocp.h, tableau.A, tableau.b, u,
-        (system.q_index, system.v_index, system.clock_index),
-        mass_matrix=lambda qk: np.asarray(mass(qk)),
-        smooth_force=lambda qk, vk, uk: np.asarray(forces(qk, vk, uk)).reshape(-1),
-        contact_jacobian=jac,
-    )
-    cone = friction_cone_violation(impulses, [c.mu for c in cls.contacts],
-                                   [c.n_tangents for c in cls.contacts])
-    normal_columns = np.cumsum([0] + [1 + c.n_tangents for c in cls.contacts])[:-1]
-    largest_normal = float(np.max(impulses[:, normal_columns], initial=0.0))
-    impulse_tolerance = options.cone_tolerance * max(largest_normal, 1e-12)
-    notes.append(f"friction-cone tolerance: {options.cone_tolerance:g} x the largest normal "
-                 f"impulse {largest_normal:.3g} N s")
-    # The slip B_i^T v of each contact at every sample of every element; an open contact
-    # has no friction to check, so its slip is zeroed and the check skips it.
-    samples = np.concatenate([ocp.x[:-1, None], ocp.x_stages, ocp.x[1:, None]], axis=1)
-    flat = samples.reshape(-1, samples.shape[-1])
-    q_samples, v_samples = flat[:, system.q_index], flat[:, system.v_index]
-    closed = np.asarray(gap_fn(q_samples.T)).T <= options.gap_tolerance
-    slips = [np.zeros((len(flat), 0))]
-    for i, contact in enumerate(cls.contacts):
-        if contact.n_tangents:
-            slip_i = np.array([np.asarray(tangents[i](qk)).T @ vk
-                               for qk, vk in zip(q_samples, v_samples, strict=True)])
-            slips.append(slip_i * closed[:, i : i + 1])
-    slip = np.hstack(slips).reshape(*samples.shape[:2], sum(c.n_tangents for c in cls.contacts))
-    painleve = painleve_note(cls, q_samples, closed)
-    if painleve:
-        notes.append(painleve)
-    dissipation, n_slipping = maximal_dissipation_violation(
-        impulses, slip, [c.mu for c in cls.contacts], [c.n_tangents for c in cls.contacts])
-    notes.append(f"maximal dissipation checked on {n_slipping} slipping element-contacts "
-                 f"(|B^T v| > {SLIP_THRESHOLD:g} m/s throughout, one direction)")
-    monotone, clock_error = clock_checks(ocp.x[:, system.clock_index], problem.horizon,
-                                         options.clock_tolerance)
-    # What the closed contacts cannot explain is the discretisation error of the plan (or a
-    # force the model lacks); report it on the same relative scale as the cone check.
-    unexplained = float(np.max(fit, initial=0.0))
-    if unexplained > impulse_tolerance:
-        notes.append(f"momentum balance not explained by the contacts up to "
-                     f"{unexplained:.2e} N s")
-    tolerances = {"end_state": options.end_state_tolerance, "gap": options.gap_tolerance,
-                  "cone": options.cone_tolerance, "dissipation": options.cone_tolerance,
-                  "clock": options.clock_tolerance}
-    end_state_ok, defect_sum, amplification = end_state_check(
-        replayed, options.end_state_tolerance, deviation, defects, reference_end, notes)
-    passed = (end_state_ok and min_gap >= -options.gap_tolerance
-              and cone <= impulse_tolerance and dissipation <= impulse_tolerance
-              and monotone and clock_error <= options.clock_tolerance)
-    return Verification(
-        passed=bool(passed),
-        method=method,
-        end_state_deviation=deviation, min_gap=min_gap, friction_cone_violation=cone,
-        clock_monotone=monotone, clock_end_error=clock_error, tolerances=tolerances,
-        notes=tuple(notes), dissipation_violation=dissipation, local_defects=defects,
-        defect_sum=defect_sum, open_loop_amplification=amplification,
-        open_loop_unstable=bool(end_state_ok and deviation > options.end_state_tolerance),
-    )
+def time_freezing_plan(problem: ContactProblem, system: TimeFreezingSystem, ocp: OcpResult,
+                       physical: PhysicalTrajectory,
+                       options: ContactSolverOptions) -> TimeFreezingPlan:
+    """What the checks read of a solved contact OCP (`tfcontact.verify.TimeFreezingPlan`)."""
+    return TimeFreezingPlan(
+        system=system, start=np.concatenate([problem.q0, problem.v0]),
+        horizon=problem.horizon, tau_horizon=problem.tau_horizon, tau=ocp.t, x=ocp.x,
+        x_stages=ocp.x_stages, h=ocp.h, tableau=ocp.build.discretization.tableau,
+        x_intervals=ocp.x_intervals, u=ocp.u, n_finite_elements=options.n_finite_elements,
+        physical=physical, homotopy=options.homotopy, nlp=options.nlp)
 
 
 def solve_contact(

@@ -51,20 +51,17 @@ import numpy as np
 from tfcontact import interrupt
 from tfcontact.errors import InvalidInput, TfcontactError, positive_int
 from tfcontact.fesd.tableau import RadauIIA
-from tfcontact.ocp.contact import (
-    ContactProblem,
-    ContactResult,
-    ContactSolverOptions,
-    _state_indices,
-)
+from tfcontact.ocp.contact import ContactProblem, ContactResult
 from tfcontact.verify import (
     LOCAL_DEFECT_IMPACT_WINDOW,
     ReplayedPlan,
     Verification,
+    VerifyOptions,
     end_state_check,
     friction_cone_violation,
     local_defects,
     reference_deviation,
+    state_indices,
 )
 
 STICK, FLIGHT = "stick", "flight"
@@ -162,9 +159,9 @@ class PolishOptions:
     max_iter: int = 3000
     blas_threads: int | None = 2
     # the verification's tolerances of a time-freezing plan
-    end_state_tolerance: float = ContactSolverOptions.end_state_tolerance
-    gap_tolerance: float = ContactSolverOptions.gap_tolerance
-    cone_tolerance: float = ContactSolverOptions.cone_tolerance
+    end_state_tolerance: float = VerifyOptions.end_state_tolerance
+    gap_tolerance: float = VerifyOptions.gap_tolerance
+    cone_tolerance: float = VerifyOptions.cone_tolerance
 
     def __post_init__(self) -> None:
         if isinstance(self.substeps, tuple):
@@ -436,7 +433,7 @@ def guess_from_result(result: ContactResult) -> tuple[np.ndarray, np.ndarray, np
     """(t, x, u) of a time-freezing plan as a guess of `polish_contact`: its physical
     trajectory's times and states x = (q, v) (frozen pieces dropped) and its controls."""
     phys = result.physical
-    return phys.t, phys.y[:, _state_indices(result.system)], result.u
+    return phys.t, phys.y[:, state_indices(result.system)], result.u
 
 
 def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],

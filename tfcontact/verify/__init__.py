@@ -4,17 +4,28 @@ A plan is computed on a time-freezing reformulation; these checks use only the o
 complementarity Lagrangian system (M(q), smooth forces, gaps, contact directions, exact
 impacts), never the time-freezing modes, so that an error in those modes shows up here.
 
-* `simulate_impacts`, `replay_controls`: an event-detecting simulator of the original
-  system with exact impacts (`tfcontact.verify.reference`).
-* the physical checks (`tfcontact.verify.checks`): contact impulses recovered from the
-  momentum balance (`contact_impulses`, `collocation_impulses`), the friction cone, Coulomb's
-  maximal dissipation, the clock, Painleve's ill-posed contacts.
-* replays of a plan's controls (`tfcontact.verify.replay`): the open-loop end-state
-  deviation, the local defects per control interval, the open-loop amplification.
-* `Verification`: the outcome of the checks of one plan.
+Entry point: `check_plan(plan, options=VerifyOptions(...))` -> `Verification`, for a
+time-freezing plan given as arrays (`TimeFreezingPlan`). The replay method is a strategy
+object of `VerifyOptions.replay`: `ExactReplay()`, `FesdReplay(refinement=4,
+scheme=RadauIIA(3), relaxation=Scholtes())` or `AutoReplay(fallback=FesdReplay())`.
 
-Layering: `tfcontact.verify` reads the time-freezing layer (the CLS) and nothing above it;
-`tfcontact.ocp` calls it, and it never imports `tfcontact.ocp`.
+Parts, usable on their own (e.g. by the exact re-solve `tfcontact.ocp.polish`):
+
+* `simulate_impacts`, `replay_controls` (`tfcontact.verify.reference`): an event-detecting
+  simulator of the original system with exact impacts.
+* the physical checks (`tfcontact.verify.checks`): contact impulses recovered from the
+  momentum balance (`contact_impulses`, `collocation_impulses`), the friction cone,
+  Coulomb's maximal dissipation, the clock, Painleve's ill-posed contacts.
+* the replays of a plan's controls (`tfcontact.verify.replay`, on a `ReplayedPlan`): the
+  open-loop end-state deviation, the local defects per control interval, the open-loop
+  amplification and the end-state check built on them.
+* `Verification` (`tfcontact.verify.result`): the outcome of the checks of one plan.
+
+Layering: data flow robot -> timefreezing -> fesd -> mpcc -> ocp. `tfcontact.verify` sits
+beside `tfcontact.ocp`: it imports the time-freezing layer (the CLS, physical time), the
+FESD simulator and the MPCC settings (for `FesdReplay`), and never `tfcontact.ocp`, which
+calls it (`solve_contact` verifies every plan through `check_plan`). A plan reaches it as
+arrays, whatever computed it.
 """
 
 from tfcontact.verify.checks import (
@@ -26,6 +37,16 @@ from tfcontact.verify.checks import (
     maximal_dissipation_violation,
     painleve_note,
 )
+from tfcontact.verify.methods import (
+    AutoReplay,
+    ExactReplay,
+    FesdReplay,
+    Replay,
+    ReplayOutcome,
+    plan_local_defects,
+)
+from tfcontact.verify.options import VerifyOptions
+from tfcontact.verify.plan import TimeFreezingPlan, check_plan, state_indices
 from tfcontact.verify.reference import (
     END_GAP_TOLERANCE,
     ReferenceImpact,
@@ -52,11 +73,19 @@ __all__ = [
     "LOCAL_DEFECT_IMPACT_WINDOW",
     "SENSITIVITY_KICK",
     "SLIP_THRESHOLD",
+    "AutoReplay",
+    "ExactReplay",
+    "FesdReplay",
     "ReferenceImpact",
     "ReferenceSimulation",
+    "Replay",
+    "ReplayOutcome",
     "ReplayedPlan",
     "StackedFunction",
+    "TimeFreezingPlan",
     "Verification",
+    "VerifyOptions",
+    "check_plan",
     "clock_checks",
     "collocation_impulses",
     "contact_impulses",
@@ -67,8 +96,10 @@ __all__ = [
     "maximal_dissipation_violation",
     "open_loop_sensitivity",
     "painleve_note",
+    "plan_local_defects",
     "planar_impulse_flow",
     "reference_deviation",
     "replay_controls",
     "simulate_impacts",
+    "state_indices",
 ]
