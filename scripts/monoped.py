@@ -156,9 +156,9 @@ def profile(mp: MonopedProblem, options: ContactSolverOptions, iterations: int) 
     """Where the time of `iterations` IPOPT iterations of the first NLP goes."""
     from tfcontact.mpcc import MpccSolver
     from tfcontact.ocp import Transcription, build
-    from tfcontact.ocp.contact import _transcribe
+    from tfcontact.ocp.contact import transcribe
 
-    ocp, _ = _transcribe(mp.problem)
+    ocp, _ = transcribe(mp.problem)
     start = time.perf_counter()
     built = build(ocp, discretization=Transcription(
         scheme=options.scheme, n_finite_elements=options.n_finite_elements,

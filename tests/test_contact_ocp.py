@@ -6,7 +6,7 @@ import pytest
 
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp import ContactProblem, ContactSolverOptions
-from tfcontact.ocp.contact import _perturbed, _transcribe
+from tfcontact.ocp.contact import perturbed_guess, transcribe
 from tfcontact.scenes.particles import painleve_rod, point_mass
 from tfcontact.timefreezing import time_freeze, with_speed_of_time
 from tfcontact.verify import defect_segments, painleve_note
@@ -22,7 +22,7 @@ def test_transcription_adds_speed_of_time_cost_state_and_clock_constraints(parti
     problem = ContactProblem(system=particle, q0=[0, 1.5], v0=[0, 0], horizon=2.0,
                              n_intervals=4, running_cost=u[0] ** 2, u_lower=-10, u_upper=10,
                              speed_of_time=(1.0, 5.0))
-    ocp, system = _transcribe(problem)
+    ocp, system = transcribe(problem)
     assert system.speed_of_time_index == 2 and system.cost_index is not None
     np.testing.assert_allclose(ocp.u_lower, [-10, -10, 1.0])
     np.testing.assert_allclose(ocp.u_upper, [10, 10, 5.0])
@@ -70,16 +70,16 @@ def test_a_restart_perturbs_the_guess_but_not_the_start_state(particle):
     problem = ContactProblem(system=particle, q0=[0, 1.5], v0=[0, 0], horizon=2.0,
                              n_intervals=40, running_cost=u[0] ** 2, u_lower=-10, u_upper=10,
                              speed_of_time=(1.0, 5.0))
-    ocp, system = _transcribe(problem)
-    one = _perturbed(ocp, 1e-3, seed=1)
+    ocp, system = transcribe(problem)
+    one = perturbed_guess(ocp, 1e-3, seed=1)
     assert one.x_guess.shape == (41, ocp.x0.size) and one.u_guess.shape == (40, 3)
     np.testing.assert_array_equal(one.x_guess[0], ocp.x0)
     step = one.x_guess[1:, system.q_index] - ocp.x0[system.q_index]
     assert 0.5e-3 < step.std() < 2e-3 and np.abs(step).max() < 1e-2
     assert np.all(one.x_guess[:, system.clock_index] >= 0.0)
     assert np.all(one.u_guess[:, 2] >= 1.0)  # speed of time >= s_min
-    np.testing.assert_array_equal(_perturbed(ocp, 1e-3, seed=1).x_guess, one.x_guess)
-    assert not np.array_equal(_perturbed(ocp, 1e-3, seed=2).x_guess, one.x_guess)
+    np.testing.assert_array_equal(perturbed_guess(ocp, 1e-3, seed=1).x_guess, one.x_guess)
+    assert not np.array_equal(perturbed_guess(ocp, 1e-3, seed=2).x_guess, one.x_guess)
 
 
 def test_local_defect_segments_run_past_boundaries_without_a_physical_state():

@@ -23,7 +23,7 @@ SEARCH_PLAN = SAVED_PLAN.with_name("monoped_search_plan.npz")  # `tfcontact plan
 def test_stick_holds_a_pushed_particle_with_the_opposing_friction():
     """A unit particle on the ground pushed sideways by F < mu m g: no acceleration,
     lambda_n = m g, lambda_t = -F; in flight it falls with g and is pushed with F."""
-    dyn = polish._Dynamics(point_mass(2, mu=0.5, controlled=True))
+    dyn = polish.HybridDynamics(point_mass(2, mu=0.5, controlled=True))
     x = np.array([0.3, 0.0, 0.0, 0.0])
     u = np.array([2.0, 0.0])
     np.testing.assert_allclose(np.asarray(dyn.rhs["stick"](x, u)).ravel(), 0.0, atol=1e-12)
@@ -36,7 +36,7 @@ def test_stick_holds_a_pushed_particle_with_the_opposing_friction():
 def test_slip_decelerates_a_sliding_particle_by_mu_g(mode, sign):
     """A particle of mass 3 sliding on the ground at v_x = s: lambda_n = m g, a_x = -s mu g,
     no normal acceleration; the rate W_nn - s mu W_nt is 1/m (W_nt = 0)."""
-    dyn = polish._Dynamics(point_mass(2, mu=0.4, mass=3.0))
+    dyn = polish.HybridDynamics(point_mass(2, mu=0.4, mass=3.0))
     x = np.array([0.0, 0.0, sign, 0.0])
     a = np.asarray(dyn.rhs[mode](x, np.zeros(0))).ravel()
     np.testing.assert_allclose(a, [sign, 0.0, -sign * 0.4 * G, 0.0], atol=1e-12)
@@ -48,7 +48,7 @@ def test_slip_decelerates_a_sliding_particle_by_mu_g(mode, sign):
 def test_baumgarte_pulls_a_drifted_contact_back():
     """Off the contact (gap h, closing at v_n), the stick rows give the normal acceleration
     -(2 alpha v_n + alpha^2 h): the drift decays instead of staying."""
-    dyn = polish._Dynamics(point_mass(2, mu=0.5), alpha=20.0)
+    dyn = polish.HybridDynamics(point_mass(2, mu=0.5), alpha=20.0)
     x = np.array([0.0, 1e-4, 0.0, -2e-3])
     a_z = float(np.asarray(dyn.rhs[polish.STICK](x, np.zeros(0))).ravel()[3])
     assert a_z == pytest.approx(-(2 * 20.0 * -2e-3 + 20.0**2 * 1e-4), rel=1e-12)
@@ -59,7 +59,7 @@ def test_stick_pins_the_rods_end_like_a_pendulum_pivot():
     theta'' = -(3 g / 2 L) cos(theta) whatever omega; the centre's acceleration follows
     from the pinned end."""
     length = 1.0
-    dyn = polish._Dynamics(painleve_rod(mu=0.5, length=length))
+    dyn = polish.HybridDynamics(painleve_rod(mu=0.5, length=length))
     theta, omega = 0.7, 1.3
     q = np.array([0.2 + length / 2 * np.cos(theta), length / 2 * np.sin(theta), theta])
     v = np.array([-length / 2 * np.sin(theta) * omega, length / 2 * np.cos(theta) * omega,
@@ -97,7 +97,7 @@ def test_radau_elements_of_the_stuck_rod_converge_with_order_five():
     from tfcontact.fesd.tableau import RadauIIA
 
     length, theta, span = 1.0, 0.7, 0.4
-    dyn = polish._Dynamics(painleve_rod(mu=0.5, length=length))
+    dyn = polish.HybridDynamics(painleve_rod(mu=0.5, length=length))
     x0 = np.array([0.2 + length / 2 * np.cos(theta), length / 2 * np.sin(theta), theta,
                    0.0, 0.0, 0.0])
     rhs = dyn.rhs[polish.STICK]
@@ -115,7 +115,7 @@ def test_radau_elements_of_the_stuck_rod_converge_with_order_five():
 def test_sticking_impact_stops_the_contact_point():
     """A particle of mass 3 landing with v = (1, -2) m/s: the sticking impact stops it,
     impulse (6, -3) N s."""
-    dyn = polish._Dynamics(point_mass(2, mu=0.8, mass=3.0))
+    dyn = polish.HybridDynamics(point_mass(2, mu=0.8, mass=3.0))
     post, impulse = dyn.impact(np.array([0.5, 0.0, 1.0, -2.0]))
     np.testing.assert_allclose(np.asarray(post).ravel(), [0.5, 0.0, 0.0, 0.0], atol=1e-12)
     np.testing.assert_allclose(np.asarray(impulse).ravel(), [6.0, -3.0], rtol=1e-12)
@@ -180,7 +180,7 @@ def test_a_lift_off_straight_from_stick_must_be_at_a_control_jump():
 
 def test_free_normal_acceleration_is_gravity_plus_push_for_a_particle():
     """The lift-off row at a control jump: n^T M^-1 (f + u) for a point mass of mass 2."""
-    dyn = polish._Dynamics(point_mass(2, mu=0.5, mass=2.0, controlled=True))
+    dyn = polish.HybridDynamics(point_mass(2, mu=0.5, mass=2.0, controlled=True))
     x = np.array([0.0, 0.0, 1.0, 0.0])
     for push in (5.0, 30.0):
         got = float(dyn.free_normal(x, np.array([0.0, push])))
@@ -212,8 +212,8 @@ def test_the_saved_full_plan_meets_tf9_and_passes_the_exact_replay(path):
     # landings, stick forces pressing and inside the cone (mu = 0.8) up to round-off.
     from tfcontact.scenes.monoped import monoped_problem
     # the reduced task's robot, ground and friction are the full task's
-    dyn = polish._Dynamics(monoped_problem("reduced").system.cls)
-    forces, impulses = polish._contact_values(plan["t"], plan["x"], plan["u"],
+    dyn = polish.HybridDynamics(monoped_problem("reduced").system.cls)
+    forces, impulses = polish.contact_values(plan["t"], plan["x"], plan["u"],
                                               saved_phases(plan), dyn, 2.5)
     assert len(impulses) == 3 and len(forces) > 300
     both = np.vstack([forces, impulses])
@@ -323,7 +323,7 @@ def test_a_capped_re_solve_reports_progress_and_fails_honestly(monkeypatch, caps
 def test_blas_threads_are_set_for_the_solve_and_restored():
     """The re-solves' paths depend on the BLAS thread count (measured: 458 against 2284
     iterations): `blas_threads` sets CasADi's OpenBLAS for the solve and restores it."""
-    lib = polish._casadi_openblas()
+    lib = polish.casadi_openblas()
     if lib is None:
         pytest.skip("this CasADi build has no bundled OpenBLAS")
     before = lib.openblas_get_num_threads()

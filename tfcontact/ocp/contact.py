@@ -337,9 +337,11 @@ def task_report(problem: ContactProblem, physical: PhysicalTrajectory) -> TaskRe
     return check_goals(problem.goals, motion)
 
 
-def _perturbed(ocp: OptimalControlProblem, noise: float,
-               seed: int) -> OptimalControlProblem:
-    """The OCP with its initial guess at the interval boundaries perturbed (seeded)."""
+def perturbed_guess(ocp: OptimalControlProblem, noise: float,
+                    seed: int) -> OptimalControlProblem:
+    """The OCP with its initial guess at the interval boundaries (not the start state)
+    and its control guess perturbed by Gaussian noise of standard deviation `noise`
+    (seeded by `seed`), clipped to the bounds: a restart of `solve_contact`."""
     rng = np.random.default_rng(seed)
     n_int, n_x, n_u = ocp.n_intervals, ocp.x0.size, ocp.u_lower.size
     x = np.array(np.broadcast_to(ocp.x0 if ocp.x_guess is None else ocp.x_guess,
@@ -351,7 +353,10 @@ def _perturbed(ocp: OptimalControlProblem, noise: float,
                                u_guess=np.clip(u, ocp.u_lower, ocp.u_upper))
 
 
-def _transcribe(problem: ContactProblem) -> tuple[OptimalControlProblem, TimeFreezingSystem]:
+def transcribe(problem: ContactProblem) -> tuple[OptimalControlProblem, TimeFreezingSystem]:
+    """The generic OCP a contact problem becomes (what `solve_contact` solves): the
+    time-freezing system with a cost state and the speed of time as last control, the
+    clock constraints, the bounds and the initial guess; and that system."""
     tf = problem.system
     u_phys = tf.u
     # The running cost in physical time: the rate is L dt/dtau per mode (0 while frozen).
@@ -480,7 +485,7 @@ def solve_contact(
     """
     options = options if options is not None else ContactSolverOptions()
     start = time.perf_counter()
-    ocp_problem, system = _transcribe(problem)
+    ocp_problem, system = transcribe(problem)
     transcription = Transcription(scheme=options.scheme,
                                   n_finite_elements=options.n_finite_elements,
                                   method=options.method)
@@ -499,7 +504,7 @@ def solve_contact(
                       f"{last.status} (end-state deviation {last.end_state_deviation:.2e}); "
                       f"solving again from the initial guess perturbed by "
                       f"{options.restart_noise:g} (seed {seed})", flush=True)
-            attempt_problem = _perturbed(ocp_problem, options.restart_noise, seed)
+            attempt_problem = perturbed_guess(ocp_problem, options.restart_noise, seed)
             attempt_w0 = None
         result = solve(attempt_problem, discretization=transcription,
                        relaxation=options.relaxation, homotopy=options.homotopy,

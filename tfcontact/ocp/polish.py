@@ -78,7 +78,7 @@ lifts off at a control jump (a grid point k T / N): the new control's free norma
 acceleration n^T M^-1 f + (dn/dt)^T v >= 0 opens the contact."""
 
 
-def _casadi_openblas():
+def casadi_openblas():
     """CasADi's bundled OpenBLAS (MUMPS's BLAS inside IPOPT), or None if there is none."""
     for name in ("libcasadi-tp-openblas.so.0", "libcasadi-tp-openblas.so"):
         path = Path(ca.__file__).parent / name
@@ -100,7 +100,7 @@ def blas_threads(n: int | None):
     2284 with 1 (OPENBLAS_NUM_THREADS=1), and the chain then stops at the iteration cap.
     Fixing the count makes a run follow the measured path on machines of the same kind.
     None: leave it as it is."""
-    lib = None if n is None else _casadi_openblas()
+    lib = None if n is None else casadi_openblas()
     if lib is None:
         yield
         return
@@ -334,8 +334,13 @@ def _check_system(cls) -> None:
                            f"direction); contact {contact.name!r} has {contact.n_tangents}")
 
 
-class _Dynamics:
-    """The hybrid system's CasADi functions in x = (q, v) and u."""
+class HybridDynamics:
+    """The hybrid system's CasADi functions in x = (q, v) and u, for one frictional planar
+    contact: `rhs[mode]` (stick with Baumgarte gain `alpha` [1/s], "slip+", "slip-",
+    flight), the stick `force` (lambda_n, lambda_t) [N], `slip_force[mode]` (lambda_n,
+    W_nn - s mu W_nt), `free_normal`, `gap`, `velocity` (v_n, v_t), `delassus` and
+    `impact` (the post-impact state with J v+ = 0 and its impulse [N s]); `rk4` and
+    `step` integrate a mode."""
 
     def __init__(self, cls, alpha: float = 20.0) -> None:
         q, v, u = cls.q, cls.v, cls.u
@@ -469,7 +474,7 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     system = problem.system
     cls = system.cls
     _check_system(cls)
-    dyn = _Dynamics(cls, options.baumgarte)
+    dyn = HybridDynamics(cls, options.baumgarte)
     radau = options.integrator == "radau"
     tableau = RadauIIA(options.radau_stages).tableau() if radau else None
     n_q, n_u = cls.n_q, cls.n_u
@@ -795,15 +800,15 @@ def verify_polished(problem: ContactProblem, phases: tuple[Phase, ...], t: np.nd
     for name, (value, shape) in expected.items():
         if value.shape != shape:
             raise InvalidInput(f"`{name}` has shape {value.shape}; the problem needs {shape}")
-    dyn = _Dynamics(cls, options.baumgarte)
-    forces, impulses = _contact_values(t, x, u, tuple(phases), dyn, problem.horizon)
+    dyn = HybridDynamics(cls, options.baumgarte)
+    forces, impulses = contact_values(t, x, u, tuple(phases), dyn, problem.horizon)
     clocks = np.arange(n_int + 1) * problem.horizon / n_int
     return _verify(problem, clocks=clocks, boundary_x=boundary_states, u=u, node_t=t,
                    node_x=x, dyn=dyn, forces=forces, impulses=impulses, options=options)
 
 
-def _contact_values(t: np.ndarray, x: np.ndarray, u: np.ndarray, phases: tuple[Phase, ...],
-                    dyn: _Dynamics, horizon: float) -> tuple[np.ndarray, np.ndarray]:
+def contact_values(t: np.ndarray, x: np.ndarray, u: np.ndarray, phases: tuple[Phase, ...],
+                   dyn: HybridDynamics, horizon: float) -> tuple[np.ndarray, np.ndarray]:
     """(stick forces (n, 2) [N], touchdown impulses (m, 2) [N s]) of a plan's nodes: the
     stick force at both ends of every segment between two nodes inside a stick phase, with
     that segment's control (at a control jump both controls, as the re-solve's rows hold
@@ -824,7 +829,7 @@ def _contact_values(t: np.ndarray, x: np.ndarray, u: np.ndarray, phases: tuple[P
 
 
 def _verify(problem: ContactProblem, *, clocks: np.ndarray, boundary_x: np.ndarray,
-            u: np.ndarray, node_t: np.ndarray, node_x: np.ndarray, dyn: _Dynamics,
+            u: np.ndarray, node_t: np.ndarray, node_x: np.ndarray, dyn: HybridDynamics,
             forces: np.ndarray, impulses: np.ndarray, options: PolishOptions) -> Verification:
     """The replay checks of `verify_plan` on the polished plan, plus its gaps, cone and
     node times (non-decreasing, the last at the horizon: there is no clock state, the
@@ -875,7 +880,7 @@ def node_samples(plan: PolishedPlan, cls, baumgarte: float = PolishOptions.baumg
     of a touchdown at its post-impact node (0 elsewhere). A node's mode and control are
     those of the segment that ends at it (the first node: the first phase's and
     control's); a post-impact node is in the stick phase that starts there."""
-    dyn = _Dynamics(cls, baumgarte)
+    dyn = HybridDynamics(cls, baumgarte)
     t, x, u = plan.t, plan.x, plan.u
     n_int = len(u)
     horizon = plan.phases[-1].end
