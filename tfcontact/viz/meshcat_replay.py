@@ -650,11 +650,11 @@ def replay(
     html_path = html_bytes = None
     if html is not None:
         html_path = Path(html)
-        from tfcontact.viz.trajectory import _atomic_write
+        from tfcontact.viz.trajectory import atomic_write
 
         text = vis.static_html()
         data_bytes = text.encode("utf-8")
-        _atomic_write(html_path, data_bytes)
+        atomic_write(html_path, data_bytes)
         html_bytes = len(data_bytes)
     url = None
     if live_vis is not None:

@@ -506,7 +506,7 @@ def sidecar_sha256(meta: dict[str, Any]) -> str:
     return hashlib.sha256(text.encode("ascii")).hexdigest()
 
 
-def _atomic_write(path: Path, data: bytes) -> None:
+def atomic_write(path: Path, data: bytes) -> None:
     """Write `data` to `path` through a temporary file in the same folder and a rename."""
     fd, tmp = tempfile.mkstemp(prefix="." + path.name + ".", suffix=".tmp", dir=path.parent)
     try:
@@ -586,8 +586,8 @@ def save_trajectory(path: str | os.PathLike, traj: Trajectory, *,
     }
     meta["sidecar_sha256"] = sidecar_sha256(meta)
     text = json.dumps(meta, indent=2, allow_nan=False) + "\n"
-    _atomic_write(npz_path, data)
-    _atomic_write(json_path, text.encode("utf-8"))
+    atomic_write(npz_path, data)
+    atomic_write(json_path, text.encode("utf-8"))
     return npz_path, json_path
 
 
