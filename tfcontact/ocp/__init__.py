@@ -5,7 +5,8 @@ transcribes it into an MPCC with FESD; `solve(problem, relaxation=..., homotopy=
 runs the MPCC homotopy and returns an `OcpResult`; that core knows nothing about robots or
 time-freezing. On top of it, `ContactProblem` + `solve_contact` state and solve a
 time-freezing OCP in physical time (speed of time, clock constraints) and verify the plan
-independently (`Verification`).
+independently with `tfcontact.verify` (`Verification`, re-exported here; the settings are
+`ContactSolverOptions.verify`, a `tfcontact.verify.VerifyOptions`).
 """
 
 from tfcontact.ocp.contact import (

@@ -13,7 +13,8 @@ generic layer and solves it (DESIGN.md 4.1, [AUTO23] section 5):
   schedule), or a given (q, v) guess at the interval boundaries with the clock k T / N.
 
 After the solve the plan is mapped to physical time (frozen pieces dropped, impacts as
-jumps) and checked independently (`verify_plan`): a re-simulation of its controls (the
+jumps) and checked independently by `tfcontact.verify` (`verify_plan` hands the plan's
+arrays to `check_plan` with `ContactSolverOptions.verify`): a replay of its controls (the
 event-detecting reference of the original system with impacts, else FESD on a finer grid),
 the gaps, the friction cone of the recovered contact impulses and the clock. Only a plan
 that converged and passed these checks has status success.
