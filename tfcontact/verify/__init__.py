@@ -43,7 +43,6 @@ from tfcontact.verify.methods import (
     FesdReplay,
     Replay,
     ReplayOutcome,
-    plan_local_defects,
 )
 from tfcontact.verify.options import VerifyOptions
 from tfcontact.verify.plan import TimeFreezingPlan, check_plan, state_indices
@@ -96,7 +95,6 @@ __all__ = [
     "maximal_dissipation_violation",
     "open_loop_sensitivity",
     "painleve_note",
-    "plan_local_defects",
     "planar_impulse_flow",
     "reference_deviation",
     "replay_controls",

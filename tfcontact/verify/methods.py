@@ -23,7 +23,7 @@ import numpy as np
 from tfcontact.errors import InvalidInput, TfcontactError, positive_int
 from tfcontact.fesd import RadauIIA, Scheme, simulate
 from tfcontact.mpcc import Relaxation, Scholtes
-from tfcontact.verify.replay import defect_segments, local_defects, reference_deviation
+from tfcontact.verify.replay import reference_deviation
 
 if TYPE_CHECKING:
     from tfcontact.verify.plan import TimeFreezingPlan
@@ -74,18 +74,10 @@ class ExactReplay(Replay):
 
     def run(self, plan: TimeFreezingPlan, gap_tolerance: float,
             notes: list[str]) -> ReplayOutcome:
-        replayed = plan.replayed()
-        deviation, method, reference_end = reference_deviation(replayed, plan.end_state)
+        deviation, method, reference_end = reference_deviation(plan.replayed(),
+                                                               plan.end_state)
         return ReplayOutcome(deviation, method, reference_end,
-                             plan_local_defects(plan, gap_tolerance))
-
-
-def plan_local_defects(plan: TimeFreezingPlan, gap_tolerance: float) -> tuple[float, ...]:
-    """The local defects of a time-freezing plan, its segments cut at the boundaries that
-    hold a physical state (`defect_segments`)."""
-    replayed = plan.replayed()
-    return local_defects(replayed, defect_segments(replayed.clocks, ~plan.running),
-                         gap_tolerance)
+                             plan.local_defects(gap_tolerance))
 
 
 @dataclass(frozen=True)
@@ -154,5 +146,5 @@ class AutoReplay(Replay):
             return ExactReplay().run(plan, gap_tolerance, notes)
         except TfcontactError as error:
             notes.append(f"event-detecting reference not applicable ({error}); FESD used")
-        defects = plan_local_defects(plan, gap_tolerance)
+        defects = plan.local_defects(gap_tolerance)
         return replace(self.fallback.run(plan, gap_tolerance, notes), local_defects=defects)

@@ -19,7 +19,7 @@ from tfcontact.verify.checks import (
     painleve_note,
 )
 from tfcontact.verify.options import VerifyOptions
-from tfcontact.verify.replay import ReplayedPlan, end_state_check
+from tfcontact.verify.replay import ReplayedPlan, defect_segments, end_state_check, local_defects
 from tfcontact.verify.result import Verification
 
 
@@ -108,6 +108,14 @@ class TimeFreezingPlan:
             clocks=self.x_intervals[:, self.system.clock_index],
             states=self.x_intervals[:, self.state_indices],
             controls=self.u[:, :self.system.cls.n_u], horizon=self.horizon)
+
+    def local_defects(self, gap_tolerance: float) -> tuple[float, ...]:
+        """The local defects (`tfcontact.verify.local_defects`), the segments cut at the
+        control-interval boundaries that hold a physical state (`defect_segments`); a
+        restart may lie `gap_tolerance` [m] inside an obstacle."""
+        replayed = self.replayed()
+        return local_defects(replayed, defect_segments(replayed.clocks, ~self.running),
+                             gap_tolerance)
 
 
 def check_plan(plan: TimeFreezingPlan, options: VerifyOptions | None = None) -> Verification:
