@@ -13,7 +13,7 @@ from tfcontact.verify import (
     FesdReplay,
     Verification,
     VerifyOptions,
-    check_plan,
+    check_time_freezing_plan,
     clock_checks,
     collocation_impulses,
     contact_impulses,
@@ -289,9 +289,9 @@ def test_each_replay_checks_a_plan_its_own_way(pushed_particle):
     """The exact replay gives the local defects (one per control interval); the FESD replay
     re-simulates on a finer grid and gives none; the other checks do not depend on the
     replay (measured: deviations 1.7e-7 and 1.1e-7)."""
-    exact = check_plan(pushed_particle, VerifyOptions(replay=ExactReplay()))
-    fesd = check_plan(pushed_particle, VerifyOptions(replay=FesdReplay(refinement=2)))
-    auto = check_plan(pushed_particle)
+    exact = check_time_freezing_plan(pushed_particle, VerifyOptions(replay=ExactReplay()))
+    fesd = check_time_freezing_plan(pushed_particle, VerifyOptions(replay=FesdReplay(refinement=2)))
+    auto = check_time_freezing_plan(pushed_particle)
     assert exact.passed and fesd.passed and auto.summary() == exact.summary()
     assert exact.method.startswith("event-detecting reference (DOP853, exact impacts)")
     assert len(exact.local_defects) == 3 and max(exact.local_defects) < 1e-5
@@ -313,8 +313,8 @@ def test_auto_replay_falls_back_to_fesd_where_the_reference_does_not_apply(pushe
 
     monkeypatch.setattr(methods, "reference_deviation", not_applicable)
     with pytest.raises(IncompatibleOptions, match="several contacts with friction"):
-        check_plan(pushed_particle, VerifyOptions(replay=ExactReplay()))
-    auto = check_plan(pushed_particle, VerifyOptions(
+        check_time_freezing_plan(pushed_particle, VerifyOptions(replay=ExactReplay()))
+    auto = check_time_freezing_plan(pushed_particle, VerifyOptions(
         replay=AutoReplay(fallback=FesdReplay(refinement=2))))
     assert auto.passed and auto.method.startswith("FESD re-simulation, 6 steps")
     assert auto.notes[0] == ("event-detecting reference not applicable (several contacts "

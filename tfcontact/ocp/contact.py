@@ -14,10 +14,10 @@ generic layer and solves it (DESIGN.md 4.1, [AUTO23] section 5):
 
 After the solve the plan is mapped to physical time (frozen pieces dropped, impacts as
 jumps) and checked independently by `tfcontact.verify` (`verify_plan` hands the plan's
-arrays to `check_plan` with `ContactSolverOptions.verify`): a replay of its controls (the
-event-detecting reference of the original system with impacts, else FESD on a finer grid),
-the gaps, the friction cone of the recovered contact impulses and the clock. Only a plan
-that converged and passed these checks has status success.
+arrays to `check_time_freezing_plan` with `ContactSolverOptions.verify`): a replay of its
+controls (the event-detecting reference of the original system with impacts, else FESD on
+a finer grid), the gaps, the friction cone of the recovered contact impulses and the clock.
+Only a plan that converged and passed these checks has status success.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ from tfcontact.timefreezing import (
     with_lagrange_cost,
     with_speed_of_time,
 )
-from tfcontact.verify import TimeFreezingPlan, Verification, VerifyOptions, check_plan
+from tfcontact.verify import TimeFreezingPlan, Verification, VerifyOptions, check_time_freezing_plan
 
 
 def _vector(value: object, n: int, default: float, name: str) -> np.ndarray:
@@ -437,10 +437,10 @@ def verify_plan(
     physical: PhysicalTrajectory,
     options: ContactSolverOptions,
 ) -> Verification:
-    """The independent checks of a contact plan (`tfcontact.verify.check_plan` with
-    `options.verify`, see `Verification`)."""
-    return check_plan(time_freezing_plan(problem, system, ocp, physical, options),
-                      options.verify)
+    """The independent checks of a contact plan (`tfcontact.verify.check_time_freezing_plan`
+    with `options.verify`, see `Verification`)."""
+    return check_time_freezing_plan(
+        time_freezing_plan(problem, system, ocp, physical, options), options.verify)
 
 
 def time_freezing_plan(problem: ContactProblem, system: TimeFreezingSystem, ocp: OcpResult,

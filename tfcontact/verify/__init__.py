@@ -4,10 +4,11 @@ A plan is computed on a time-freezing reformulation; these checks use only the o
 complementarity Lagrangian system (M(q), smooth forces, gaps, contact directions, exact
 impacts), never the time-freezing modes, so that an error in those modes shows up here.
 
-Entry point: `check_plan(plan, options=VerifyOptions(...))` -> `Verification`, for a
-time-freezing plan given as arrays (`TimeFreezingPlan`). The replay method is a strategy
-object of `VerifyOptions.replay`: `ExactReplay()`, `FesdReplay(refinement=4,
-scheme=RadauIIA(3), relaxation=Scholtes())` or `AutoReplay(fallback=FesdReplay())`.
+Entry point: `check_time_freezing_plan(plan, options=VerifyOptions(...))` ->
+`Verification`, for a time-freezing plan given as arrays (`TimeFreezingPlan`). The replay
+method is a strategy object of `VerifyOptions.replay`: `ExactReplay()`,
+`FesdReplay(refinement=4, scheme=RadauIIA(3), relaxation=Scholtes())` or
+`AutoReplay(fallback=FesdReplay())`.
 
 Parts, usable on their own (e.g. by the exact re-solve `tfcontact.ocp.polish`):
 
@@ -24,8 +25,8 @@ Parts, usable on their own (e.g. by the exact re-solve `tfcontact.ocp.polish`):
 Layering: data flow robot -> timefreezing -> fesd -> mpcc -> ocp. `tfcontact.verify` sits
 beside `tfcontact.ocp`: it imports the time-freezing layer (the CLS, physical time), the
 FESD simulator and the MPCC settings (for `FesdReplay`), and never `tfcontact.ocp`, which
-calls it (`solve_contact` verifies every plan through `check_plan`). A plan reaches it as
-arrays, whatever computed it.
+calls it (`solve_contact` verifies every plan through `check_time_freezing_plan`). A plan
+reaches it as arrays, whatever computed it.
 """
 
 from tfcontact.verify.checks import (
@@ -45,7 +46,7 @@ from tfcontact.verify.methods import (
     ReplayOutcome,
 )
 from tfcontact.verify.options import VerifyOptions
-from tfcontact.verify.plan import TimeFreezingPlan, check_plan, state_indices
+from tfcontact.verify.plan import TimeFreezingPlan, check_time_freezing_plan, state_indices
 from tfcontact.verify.reference import (
     END_GAP_TOLERANCE,
     ReferenceImpact,
@@ -84,7 +85,7 @@ __all__ = [
     "TimeFreezingPlan",
     "Verification",
     "VerifyOptions",
-    "check_plan",
+    "check_time_freezing_plan",
     "clock_checks",
     "collocation_impulses",
     "contact_impulses",

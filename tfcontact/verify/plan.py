@@ -1,4 +1,5 @@
-"""The checks of a time-freezing plan (`check_plan`), given as arrays (`TimeFreezingPlan`)."""
+"""The checks of a time-freezing plan (`check_time_freezing_plan`), given as arrays
+(`TimeFreezingPlan`)."""
 
 from __future__ import annotations
 
@@ -118,7 +119,8 @@ class TimeFreezingPlan:
                              gap_tolerance)
 
 
-def check_plan(plan: TimeFreezingPlan, options: VerifyOptions | None = None) -> Verification:
+def check_time_freezing_plan(plan: TimeFreezingPlan,
+                             options: VerifyOptions | None = None) -> Verification:
     """The independent checks of a time-freezing plan (see `Verification`).
 
     Re-simulates the plan's physical controls (`options.replay`: the event-detecting
