@@ -141,18 +141,18 @@ def run_nosnoc(tolerance: float) -> dict:
                           a_n=task.a_n, name="foot"),))
     clocks = traj[::opts.N_finite_elements, -1]
     controls = np.asarray(results["u_traj"])[:, :2]
-    deviation = _replay_deviation(cls, task.x0, clocks, controls, task.horizon, traj[-1, :8])
+    deviation = replay_deviation(cls, task.x0, clocks, controls, task.horizon, traj[-1, :8])
     return {
         "method": "nosnoc_py 0.2.0 (TF-8 hand model, Stewart time-freezing)",
         "wall": wall, "build": np.nan, "solve": float(sum(results["cpu_time_nlp"])),
         "nlps": len(results["nlp_iter"]), "iterations": int(sum(results["nlp_iter"])),
         "residual": residual, "deviation": deviation,
-        "status": f"{results['status']}, {_replay_verdict(deviation, tolerance)}",
+        "status": f"{results['status']}, {replay_verdict(deviation, tolerance)}",
         "x_end": float(traj[-1, 0]),
     }
 
 
-def _replay_deviation(cls: ComplementarityLagrangianSystem, x0: np.ndarray,
+def replay_deviation(cls: ComplementarityLagrangianSystem, x0: np.ndarray,
                       clocks: np.ndarray, controls: np.ndarray, horizon: float,
                       plan_end: np.ndarray) -> float:
     """max |x_replay(T) - x_plan(T)| (an impact at T counts on either side, as in
@@ -166,7 +166,7 @@ def _replay_deviation(cls: ComplementarityLagrangianSystem, x0: np.ndarray,
     return replay.deviation_at(horizon, plan_end)[0]
 
 
-def _replay_verdict(deviation: float, tolerance: float) -> str:
+def replay_verdict(deviation: float, tolerance: float) -> str:
     """nosnoc_py's own status does not check its plan: how the replay compares with the
     end-state tolerance tfcontact's plans must meet."""
     if not np.isfinite(deviation):

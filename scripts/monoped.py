@@ -167,7 +167,7 @@ def profile(mp: MonopedProblem, options: ContactSolverOptions, iterations: int) 
     nlp = dataclasses.replace(options.nlp, max_iter=iterations)
     solver = MpccSolver(built.mpcc, relaxation=options.relaxation, nlp=nlp)
     result = solver.solve(built.p, homotopy=dataclasses.replace(options.homotopy, max_nlps=1))
-    stats = solver._solver.stats()  # noqa: SLF001 (profiling only)
+    stats = solver.ipopt_stats()
     evals = {k[len("t_wall_nlp_"):]: stats[k] for k in stats if k.startswith("t_wall_nlp_")}
     total = result.history[0].seconds
     return {"build_ocp": t_build, "build_nlp": solver.build_time, "iterations":

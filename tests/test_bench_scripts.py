@@ -26,13 +26,13 @@ def test_bench_replays_a_plan_against_its_end_state(load_script):
     exact = np.array([2.0 * math.sqrt(2.0 / G), 0.0, 0.0, 0.0])
     args = (cls, np.array([0.0, 1.0, 2.0, 0.0]), np.array([0.0, 0.5, 1.0]),
             np.array([[0.0, 0.0], [1.0, 0.0]]), 1.0)
-    assert bench._replay_deviation(*args, exact) < 1e-6
+    assert bench.replay_deviation(*args, exact) < 1e-6
     wrong = exact + np.array([0.0, 0.0, 0.1, 0.0])
-    assert bench._replay_deviation(*args, wrong) == pytest.approx(0.1, abs=1e-6)
+    assert bench.replay_deviation(*args, wrong) == pytest.approx(0.1, abs=1e-6)
     # the table's status for nosnoc_py's plan, which its own status does not check
-    assert bench._replay_verdict(0.1, 5e-2) == "replay outside 0.05"
-    assert bench._replay_verdict(1e-3, 5e-2) == "replay within 0.05"
-    assert bench._replay_verdict(float("nan"), 5e-2) == "replay stopped"
+    assert bench.replay_verdict(0.1, 5e-2) == "replay outside 0.05"
+    assert bench.replay_verdict(1e-3, 5e-2) == "replay within 0.05"
+    assert bench.replay_verdict(float("nan"), 5e-2) == "replay stopped"
 
 
 def test_settings_variants_change_one_setting_each(load_script):

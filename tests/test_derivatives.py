@@ -72,7 +72,7 @@ def test_the_solver_reaches_the_same_solution_with_and_without_repeated_blocks()
     schedule = Homotopy(sigma_0=1e-2, tolerance=1e-8)
     solvers = [MpccSolver(m, nlp=Ipopt(tol=1e-12, element_derivatives=True, threads=2)),
                MpccSolver(m, nlp=Ipopt(tol=1e-12))]  # off by default: CasADi's own
-    kinds = [s._solver.get_function("nlp_hess_l").class_name() for s in solvers]
+    kinds = [s.nlp_function("nlp_hess_l").class_name() for s in solvers]
     assert kinds == ["MXFunction", "SXFunction"]
     results = [solver.solve(p, homotopy=schedule, verbose=False) for solver in solvers]
     assert all(r.success for r in results)

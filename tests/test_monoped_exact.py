@@ -55,7 +55,7 @@ def test_a_capped_step_hands_its_iterate_on_and_the_last_is_solved_again(monkeyp
     monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
     mp = monoped_problem(REDUCED_TASK)
     levels = [("first", mp, None), ("second", mp, None)]
-    result = chain_module._chain(levels, (Phase(STICK, 0, 1),), None, [], 0.0,
+    result = chain_module.run_chain(levels, (Phase(STICK, 0, 1),), None, [], 0.0,
                                  verbose=False)
     assert guesses == [None, 1.0, 2.0]  # each solve starts from the last iterate
     assert [s.name for s in result.steps] == ["first", "second",
@@ -72,7 +72,7 @@ def test_any_other_failure_stops_the_chain(monkeypatch):
 
     monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
     mp = monoped_problem(REDUCED_TASK)
-    result = chain_module._chain([("first", mp, None), ("second", mp, None)],
+    result = chain_module.run_chain([("first", mp, None), ("second", mp, None)],
                                  (Phase(STICK, 0, 1),), None, [], 0.0, verbose=False)
     assert len(calls) == 1 and result.status == "nlp_failed" and not result.success
     assert "first: IPOPT Infeasible_Problem_Detected" in result.summary()
@@ -94,7 +94,7 @@ def test_a_level_may_set_its_options_from_the_last_plan(monkeypatch):
 
     monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
     mp = monoped_problem(EXACT_TASK)
-    result = chain_module._chain(chain_module.radau_levels(mp), (Phase(STICK, 0, 2.5),),
+    result = chain_module.run_chain(chain_module.radau_levels(mp), (Phase(STICK, 0, 2.5),),
                                  None, [], 0.0, verbose=False)
     assert result.status == "converged" and len(seen) == 2
     assert seen[0].integrator == "radau" and seen[0].substeps == 12
@@ -313,7 +313,7 @@ def test_radau_levels_turn_the_rk4_plan_into_a_verified_radau_plan():
     783 iterations, 8 minutes; defects summing to 8.6e-3 against the RK4 plan's 3.7e-2)."""
     rk4 = np.load(SAVED_PLAN.with_name("monoped_exact_rk4_plan.npz"))
     mp = monoped_problem(EXACT_TASK)
-    result = chain_module._chain(chain_module.radau_levels(mp),
+    result = chain_module.run_chain(chain_module.radau_levels(mp),
                                  chain_module.saved_phases(rk4), (rk4["t"], rk4["x"], rk4["u"]),
                                  [], 0.0, verbose=False)
     first, refined = result.steps

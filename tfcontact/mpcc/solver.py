@@ -336,6 +336,16 @@ class MpccSolver:
         )
         self.build_time = time.perf_counter() - start
 
+    def nlp_function(self, name: str) -> ca.Function:
+        """One of the NLP solver's derivative functions ("nlp_hess_l", "nlp_jac_g",
+        "nlp_grad_f"), e.g. to see which form builds them."""
+        return self._solver.get_function(name)
+
+    def ipopt_stats(self) -> dict[str, Any]:
+        """IPOPT's statistics of the last NLP solved to `Ipopt.tol` (CasADi's
+        `stats()`: return status, iteration count, `t_wall_nlp_*` evaluation times, ...)."""
+        return dict(self._solver.stats())
+
     def _p_value(self, p: np.ndarray | None) -> np.ndarray:
         n_p = self.mpcc.p.numel()
         if p is None:

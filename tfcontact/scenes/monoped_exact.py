@@ -226,7 +226,7 @@ def reduced_exact_plan(verbose: bool = True) -> ExactPlan:
               ("exact re-solve, 16 nodes", mp, PolishOptions(substeps=16, painleve_margin=0.0)),
               ("exact re-solve, 16 nodes x 2 RK4 steps", mp,
                PolishOptions(substeps=16, steps_per_node=2, painleve_margin=0.0))]
-    return _chain(levels, phases, relaxed, steps, start, verbose)
+    return run_chain(levels, phases, relaxed, steps, start, verbose)
 
 
 def _return_memory() -> None:
@@ -240,7 +240,7 @@ def _return_memory() -> None:
         pass
 
 
-def _chain(levels, phases, guess, steps: list[ChainStep], start: float,
+def run_chain(levels, phases, guess, steps: list[ChainStep], start: float,
            verbose: bool) -> ExactPlan:
     """Run the re-solves `levels` [(name, MonopedProblem, PolishOptions or a function
     (last plan, problem) -> PolishOptions)] in order, each from the last (the first from
@@ -403,7 +403,7 @@ def full_exact_plan(verbose: bool = True, schedule: Schedule | str = "search"
               *radau_levels(ellipses)]
     if schedule != "search":
         guess, phases = tiled_guess(reduced.plan, EXACT_TASK, schedule)
-        return _chain(levels, phases, guess, steps, start, verbose)
+        return run_chain(levels, phases, guess, steps, start, verbose)
     # the candidates' re-solve is the chain's first level, which the chosen one replaces
     first_name, first_problem, first_options = levels[0]
     best, trials = search_schedule(reduced.plan, uniform_schedules(reduced.plan),
@@ -418,7 +418,7 @@ def full_exact_plan(verbose: bool = True, schedule: Schedule | str = "search"
         print(f"monoped: schedule found, {best.schedule}, flights of "
               f"{best.schedule.flight_time:.4g} s", flush=True)
     plan = best.plan
-    return _chain(levels[1:], plan.phases, (plan.t, plan.x, plan.u), steps, start, verbose)
+    return run_chain(levels[1:], plan.phases, (plan.t, plan.x, plan.u), steps, start, verbose)
 
 
 def radau_options(substeps: int | tuple[int, ...] = RADAU_ELEMENTS) -> PolishOptions:
