@@ -16,8 +16,10 @@ Layers, data flowing down the list (ARCHITECTURE.md):
 * `tfcontact.timefreezing`: complementarity Lagrangian systems -> piecewise smooth systems.
 * `tfcontact.fesd`: piecewise smooth systems -> FESD discretisation, simulator.
 * `tfcontact.mpcc`: relaxations and homotopy for MPCCs, solved with IPOPT.
-* `tfcontact.ocp`: optimal control problems, results, verification, task goals.
+* `tfcontact.ocp`: optimal control problems, results, task goals, the exact re-solve.
+* `tfcontact.verify`: independent checks against the original system (beside `ocp`).
 * `tfcontact.scenes`: reference problems and the named plans of the command line.
+* `tfcontact.sweep`: stability sweeps on Dask.
 * `tfcontact.viz`: trajectory files, meshcat replay, figures.
 
 The names below are imported on first use, so `import tfcontact` stays light.

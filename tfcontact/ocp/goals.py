@@ -1,6 +1,6 @@
 """Task checks: does a physical plan do what it was asked to?
 
-The verification (`tfcontact.ocp.verify`) says whether a plan is *physical*; a plan can be
+The verification (`tfcontact.verify`) says whether a plan is *physical*; a plan can be
 physical and still useless: a do-nothing plan of a problem with only a terminal cost, or a
 hopper that stops 0.39 m short of its goal, both passed it. A `ContactProblem` therefore
 states its task as goals, each a strategy object that checks the plan's motion in
