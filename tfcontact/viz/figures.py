@@ -16,7 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from tfcontact.errors import InvalidInput
-from tfcontact.viz.trajectory import FROZEN_RATE_TOL, Trajectory, physical_time
+from tfcontact.viz.trajectory import Trajectory, physical_time
 
 _FORMATS = ("png", "svg")
 _FROZEN_STYLE = {"color": "tab:blue", "alpha": 0.15, "lw": 0}
@@ -27,7 +27,7 @@ def plot_trajectory(
     out_dir: str | os.PathLike,
     *,
     formats: tuple[str, ...] = _FORMATS,
-    rate_tol: float = FROZEN_RATE_TOL,
+    rate_tol: float | None = None,
     dpi: int = 120,
 ) -> list[Path]:
     """Write the standard figures of `traj` to `out_dir`.
@@ -46,7 +46,8 @@ def plot_trajectory(
         traj: the trajectory.
         out_dir: output folder (created if missing).
         formats: file formats, any of "png", "svg".
-        rate_tol: clock-rate tolerance for frozen pieces (see `physical_time`).
+        rate_tol: clock-rate tolerance for frozen pieces (see `physical_time`); default
+            the trajectory's own `frozen_rate_tol`.
         dpi: resolution of the PNG files [dots per inch].
 
     Returns:

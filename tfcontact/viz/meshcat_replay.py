@@ -31,7 +31,7 @@ import numpy as np
 import pinocchio as pin
 
 from tfcontact.errors import InvalidInput
-from tfcontact.viz.trajectory import FROZEN_RATE_TOL, Trajectory, load_trajectory, physical_time
+from tfcontact.viz.trajectory import Trajectory, load_trajectory, physical_time
 
 ROOT = "tfcontact"
 CONTACT_ON_COLOR = 0x2CA02C  # green: gap <= contact_tol
@@ -480,7 +480,7 @@ def replay(
     mesh_detail: float | None = 0.03,
     max_frames: int = 3000,
     compress: bool = True,
-    rate_tol: float = FROZEN_RATE_TOL,
+    rate_tol: float | None = None,
 ) -> ReplayResult:
     """Animate a trajectory in meshcat, in physical time.
 
@@ -507,7 +507,8 @@ def replay(
         compress: gzip the page's scripts (about 3 times smaller; unpacked by the browser's
             DecompressionStream: Chromium 80, Firefox 113, Safari 16.4 or later); False
             writes them as plain text, as meshcat's own static page does.
-        rate_tol: clock-rate tolerance for dropping frozen pieces (see `physical_time`).
+        rate_tol: clock-rate tolerance for dropping frozen pieces (see `physical_time`);
+            default the trajectory's own `frozen_rate_tol`.
 
     Returns:
         A `ReplayResult`.

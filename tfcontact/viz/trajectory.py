@@ -97,6 +97,7 @@ from typing import Any
 import numpy as np
 
 from tfcontact.errors import InvalidInput, TrajectoryFileError
+from tfcontact.timefreezing import FROZEN_RATE_TOL
 
 FORMAT = "tfcontact-trajectory"
 FORMAT_VERSION = 2
@@ -104,8 +105,11 @@ FORMAT_VERSION = 2
 #: Format versions `load_trajectory` reads (version 1: no digests, `model` or `task`).
 READABLE_VERSIONS = (1, 2)
 
-#: Default tolerance on the clock rate dt/dtau below which an interval counts as frozen.
-FROZEN_RATE_TOL = 1e-6
+#: The clock-rate tolerance of version-1 files, which did not store theirs: their stored
+#: physical samples `t` / `t_index` were computed with it. Newer files store theirs
+#: (`frozen_rate_tol`); a new `Trajectory` takes the time-freezing layer's
+#: `FROZEN_RATE_TOL`, the one tolerance of the project.
+VERSION_1_RATE_TOL = 1e-6
 
 ARRAY_DOCS: dict[str, str] = {
     "tau": "numerical time [s], shape (N,)",
@@ -682,7 +686,7 @@ def _read_sidecar(json_path: Path) -> dict[str, Any]:
         if key in meta and not (isinstance(meta[key], str) and _SHA256.fullmatch(meta[key])):
             problems.append(f"`{key}` must be 64 hexadecimal digits")
     try:
-        _rate_tol(meta.get("frozen_rate_tol", FROZEN_RATE_TOL))
+        _rate_tol(meta.get("frozen_rate_tol", VERSION_1_RATE_TOL))
     except InvalidInput:
         problems.append("`frozen_rate_tol` must be a finite number >= 0")
     if problems:
@@ -766,7 +770,7 @@ def _trajectory(meta: dict[str, Any], arrays: dict[str, np.ndarray],
             **{name: arrays[name] for name in _ALL_ARRAYS}, status=meta["status"],
             **{key: meta[key] for key in _METADATA},
             **{key: meta.get(key, {}) for key in _METADATA_V2},
-            extras=extras, frozen_rate_tol=meta.get("frozen_rate_tol", FROZEN_RATE_TOL),
+            extras=extras, frozen_rate_tol=meta.get("frozen_rate_tol", VERSION_1_RATE_TOL),
         )
     except InvalidInput as err:
         raise TrajectoryFileError(f"{where!r}: {err}; {RESTORE}") from err
