@@ -299,10 +299,7 @@ class Discretization:
 
     def theta_values(self, w: np.ndarray) -> np.ndarray:
         """Theta at the stage points, shape (E, s, m) (Heaviside: (alpha, 1 - alpha))."""
-        z = self.algebraic(w)
-        if isinstance(self.system, StewartSystem):
-            return z["theta"]
-        return np.concatenate([z["alpha"], 1 - z["alpha"]], axis=2)
+        return self.system.theta(self.algebraic(w))
 
     def active_sets(self, w: np.ndarray, threshold: float = 1e-5) -> np.ndarray:
         """Boolean (E, m): component r of Theta is active (> threshold) somewhere in element e."""

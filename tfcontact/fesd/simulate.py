@@ -931,6 +931,4 @@ def _result(status: SimulationStatus, failure: str, pieces: list[_Piece], steppe
 
 
 def _theta(disc: Discretization, algebraic: dict[str, np.ndarray]) -> np.ndarray:
-    if isinstance(disc.system, StewartSystem):
-        return algebraic["theta"]
-    return np.concatenate([algebraic["alpha"], 1 - algebraic["alpha"]], axis=2)
+    return disc.system.theta(algebraic)

@@ -16,6 +16,7 @@ discretised or solved here.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -137,6 +138,23 @@ class StewartSystem:
     def n_regions(self) -> int:
         return self.modes.shape[1]
 
+    def with_dynamics(self, rows: Callable[[ca.SX], ca.SX], *, x: ca.SX | None = None,
+                      u: ca.SX | None = None, state_names: tuple[str, ...] | None = None,
+                      control_names: tuple[str, ...] | None = None) -> StewartSystem:
+        """The same regions with every mode's rows passed through `rows` (applied to the
+        matrix F whose columns are the modes), optionally with new state and control
+        symbols and names (default: these)."""
+        return StewartSystem(
+            x=self.x if x is None else x, u=self.u if u is None else u,
+            modes=rows(self.modes), indicators=self.indicators, switching=self.switching,
+            state_names=self.state_names if state_names is None else state_names,
+            control_names=self.control_names if control_names is None else control_names)
+
+    def theta(self, algebraic: Mapping[str, np.ndarray]) -> np.ndarray:
+        """The convex multipliers Theta of the regions from a discretisation's algebraic
+        variables (`Discretization.algebraic`), shape (..., n_regions)."""
+        return algebraic["theta"]
+
 
 @dataclass(frozen=True, eq=False)
 class HeavisideSystem:
@@ -198,6 +216,24 @@ class HeavisideSystem:
     @property
     def n_switching(self) -> int:
         return self.switching.numel()
+
+    def with_dynamics(self, rows: Callable[[ca.SX], ca.SX], *, x: ca.SX | None = None,
+                      u: ca.SX | None = None, state_names: tuple[str, ...] | None = None,
+                      control_names: tuple[str, ...] | None = None) -> HeavisideSystem:
+        """The same switching with the right-hand side's rows passed through `rows`
+        (f is multi-affine in alpha, so a row map that is linear in the modes may act on f
+        directly), optionally with new state and control symbols and names."""
+        return HeavisideSystem(
+            x=self.x if x is None else x, u=self.u if u is None else u, alpha=self.alpha,
+            rhs=rows(self.rhs), switching=self.switching,
+            state_names=self.state_names if state_names is None else state_names,
+            control_names=self.control_names if control_names is None else control_names)
+
+    def theta(self, algebraic: Mapping[str, np.ndarray]) -> np.ndarray:
+        """The Heaviside steps as multipliers, (alpha, 1 - alpha), from a discretisation's
+        algebraic variables, shape (..., 2 n_switching)."""
+        alpha = algebraic["alpha"]
+        return np.concatenate([alpha, 1 - alpha], axis=-1)
 
 
 PiecewiseSmoothSystem = StewartSystem | HeavisideSystem

@@ -135,14 +135,9 @@ def with_speed_of_time(system: TimeFreezingSystem, *, name: str = "s") -> TimeFr
     s = ca.SX.sym(name)
     pss = system.pss
     u = ca.vertcat(pss.u, s)
-    names = {"state_names": pss.state_names, "control_names": (*pss.control_names, name)}
     modes = system.modes * s
-    if isinstance(pss, StewartSystem):
-        new = StewartSystem(x=pss.x, u=u, modes=pss.modes * s, indicators=pss.indicators,
-                            switching=pss.switching, **names)
-    else:
-        new = HeavisideSystem(x=pss.x, u=u, alpha=pss.alpha, rhs=pss.rhs * s,
-                              switching=pss.switching, **names)
+    new = pss.with_dynamics(lambda rows: rows * s, u=u,
+                            control_names=(*pss.control_names, name))
     return replace(system, pss=new, modes=modes, speed_of_time_index=pss.n_u)
 
 
@@ -185,13 +180,7 @@ def with_lagrange_cost(
         return ca.vertcat(rows[:k, :], rate, rows[k:, :])
 
     modes = insert(system.modes)
-    names = {"state_names": state_names, "control_names": pss.control_names}
-    if isinstance(pss, StewartSystem):
-        new = StewartSystem(x=x, u=pss.u, modes=insert(pss.modes), indicators=pss.indicators,
-                            switching=pss.switching, **names)
-    else:
-        new = HeavisideSystem(x=x, u=pss.u, alpha=pss.alpha, rhs=insert(pss.rhs),
-                              switching=pss.switching, **names)
+    new = pss.with_dynamics(insert, x=x, state_names=state_names)
 
     def shift(index: slice) -> slice:
         if index.start is not None and index.start >= k:
