@@ -251,9 +251,10 @@ def _run(pending: list[SweepCase], spec: SweepSpec, target: SweepTarget,
 
     cluster = None
     if scheduler is None:
-        # No dashboard: it needs bokeh and a free port, and a sweep reports itself.
+        # The scheduler's HTTP server (the dashboard with bokeh) on any free port: two
+        # sweeps at once would otherwise both claim 8787 (the second with a warning).
         cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               dashboard_address=":0", silence_logs=logging.ERROR)
         client = Client(cluster)
         # Ctrl-C in a terminal reaches the whole process group: the workers leave it to
         # this process, which cancels the cases and closes them (no worker tracebacks).
