@@ -131,18 +131,48 @@ def markdown(result: SweepResult) -> str:
     return "\n".join(lines) + "\n"
 
 
+_MARKERS = {"verified, 1st attempt": ("o", "tab:green"),
+            "verified after restart": ("s", "yellowgreen")}
+
+
+def _starts_map(first, second, cases: Sequence[CaseResult], names: list[str]) -> None:
+    """The start offsets, the first perturbed coordinate against the second (and the
+    third), marked by outcome over all grid points."""
+    pairs = [(names[0], n) for n in names[1:3]] if len(names) > 1 else []
+    for ax, pair in zip((first, second), pairs + [None] * 2, strict=False):
+        if pair is None:
+            ax.set_axis_off()
+            continue
+        shown = set()
+        for c in cases:
+            if not all(n in c.offsets for n in pair):
+                continue
+            kind = outcome(c)
+            marker, colour = _MARKERS.get(kind, ("x", "tab:red"))
+            label = kind if kind in _MARKERS else "failed"
+            ax.plot(c.offsets[pair[0]], c.offsets[pair[1]], marker, color=colour, ms=7,
+                    label=None if label in shown else label)
+            shown.add(label)
+        ax.set_xlabel(f"start offset {pair[0]}")
+        ax.set_ylabel(f"start offset {pair[1]}")
+        ax.set_title("where the starts failed")
+        if shown:
+            ax.legend(fontsize=8)
+
+
 def chart(result: SweepResult, path: Path) -> Path:
-    """Four panels: verified rate per grid value (overall and at the 1st attempt), wall
-    times and costs per grid point, outcome counts per grid point."""
+    """Six panels: verified rate per grid value (overall and at the 1st attempt), wall
+    times and costs per grid point, outcome counts per grid point, and where in the
+    perturbation's ranges the starts verified or failed."""
     from matplotlib import colormaps
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     cases = result.cases
     values, points = by_value(cases), by_point(cases)
-    fig = Figure(figsize=(12, 8.5))
+    fig = Figure(figsize=(17, 8.5))
     FigureCanvasAgg(fig)  # Agg without pyplot: no global backend or figure state
-    axes = fig.subplots(2, 2)
+    axes = fig.subplots(2, 3)
     ax = axes[0, 0]
     x = np.arange(len(values))
     rates = [100 * sum(c.success for c in g) / len(g) for g in values.values()]
@@ -196,6 +226,7 @@ def chart(result: SweepResult, path: Path) -> Path:
     ax.set_ylabel("cases")
     ax.set_title("what failed and why")
     ax.legend(fontsize=8)
+    _starts_map(axes[0, 2], axes[1, 2], cases, list(result.meta.get("perturbation", {})))
     spec = result.spec
     fig.suptitle(f"{spec.plan} ({spec.task}): {len(cases)} cases, {spec.starts} perturbed "
                  f"starts per grid point; verified {result.n_success}, at the 1st attempt "
