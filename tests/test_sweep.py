@@ -1,0 +1,266 @@
+"""Stability sweeps (`tfcontact.sweep`): the spec and its errors, the perturbed starts and,
+on a `distributed.LocalCluster`, a small sweep of the TF-3 particle (N = 6, about 1-4 s a
+case): its case files, resume, interrupt, a case that raises, the table and the chart."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+
+import numpy as np
+import pytest
+
+from tfcontact.errors import InvalidInput
+from tfcontact.fesd import Fesd, Standard
+from tfcontact.mpcc import L1Penalty
+from tfcontact.sweep import (
+    GRID_PARAMETERS,
+    HOPPER_PERTURBATION,
+    SWEEP_TARGETS,
+    CaseResult,
+    CoordinateRange,
+    InfeasibleStart,
+    ParticleTarget,
+    Perturbation,
+    Progress,
+    Silent,
+    SweepCase,
+    SweepSpec,
+    add_sweep_parser,
+    run_sweep,
+)
+
+# ---------------------------------------------------------------- the spec, fast
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"plan": "hopper", "starts": 0}, r"`starts` must be a positive integer, got 0"),
+    ({"plan": "hopper", "starts": 2.5}, r"`starts` must be a positive integer, got 2.5"),
+    ({"plan": "walker"}, r"unknown plan `walker`; sweepable plans: hopper, particle"),
+    ({"plan": "monoped"}, r"plan `monoped` solves itself in its own chain"),
+    ({"plan": "hopper", "task": "sprint"},
+     r"plan `hopper` has no task `sprint`; tasks: short, long, bench"),
+    ({"plan": "hopper", "seed": -1}, r"`seed` must be a non-negative integer, got -1"),
+    ({"plan": "hopper", "grid": {"gravity": [9.8]}},
+     r"unknown grid key `gravity`; grid keys: friction, a_n, relaxation, scheme"),
+    ({"plan": "particle", "grid": {"a_n": [10.0]}},
+     r"plan `particle` cannot vary `a_n` \(its problem-level grid keys: friction\)"),
+    ({"plan": "hopper", "grid": {"friction": []}}, r"grid key `friction` has no values"),
+    ({"plan": "hopper", "grid": {"friction": [-0.1]}},
+     r"`friction` values must be finite and >= 0 .*, got -0.1"),
+    ({"plan": "hopper", "grid": {"a_n": ["0"]}},
+     r"`a_n` values must be finite and > 0 .*, got 0.0"),
+    ({"plan": "hopper", "grid": {"friction": ["soft"]}},
+     r"`friction` values must be numbers, got 'soft'"),
+    ({"plan": "hopper", "grid": {"relaxation": ["l2"]}},
+     r"`relaxation` must be one of scholtes, l1, linf, got 'l2'"),
+    ({"plan": "hopper", "grid": {"scheme": ["euler"]}},
+     r"`scheme` must be one of fesd, standard, got 'euler'"),
+    ({"plan": "hopper", "grid": {"friction": [0.5, "0.5"]}},
+     r"grid key `friction` repeats a value: \[0.5, 0.5\]"),
+])
+def test_spec_rejects_bad_input(kwargs, message):
+    with pytest.raises(InvalidInput, match=message):
+        SweepSpec(**kwargs)
+
+
+def test_spec_expands_the_grid_times_the_starts():
+    spec = SweepSpec("hopper", starts=3, seed=7,
+                     grid={"relaxation": ["scholtes", "l1"], "friction": ["0.5", 1]})
+    assert spec.task == "short"  # the plan's first task
+    # keys in GRID_PARAMETERS order whatever order they came in, numbers as floats
+    assert spec.grid == (("friction", (0.5, 1.0)), ("relaxation", ("scholtes", "l1")))
+    cases = spec.cases()
+    assert len(cases) == 12 and len({c.case_id for c in cases}) == 12
+    assert cases[0] == SweepCase((("friction", 0.5), ("relaxation", "scholtes")), 0, 7)
+    assert cases[0].case_id == "friction=0.5_relaxation=scholtes_start=000"
+    assert cases[-1].group == "friction=1, relaxation=l1"
+    assert SweepSpec("particle", starts=2).cases()[1].case_id == "start=001"
+
+
+def test_options_parameters_set_relaxation_and_discretisation():
+    from tfcontact.scenes.hopper import hopper_options
+
+    options = hopper_options("short")
+    relaxed = GRID_PARAMETERS["relaxation"].apply(options, "l1")
+    assert isinstance(relaxed.relaxation, L1Penalty)
+    assert isinstance(GRID_PARAMETERS["scheme"].apply(options, "standard").method, Standard)
+    # FESD keeps the plan's own settings (the hopper's gamma_h = 0.9)
+    assert GRID_PARAMETERS["scheme"].apply(options, "fesd").method == Fesd(gamma_h=0.9)
+
+
+def test_hopper_target_sets_friction_and_a_n_in_its_task():
+    target = SWEEP_TARGETS["hopper"]
+    setup = target.setup("short", {"friction": 0.8, "a_n": 25.0})
+    contact = setup.problem.system.cls.contacts[0]
+    assert (contact.mu, contact.a_n) == (0.8, 25.0)
+    assert setup.options.attempts == 3 and setup.problem.n_intervals == 20
+    plain = target.setup("short", {}).problem.system.cls.contacts[0]
+    assert (plain.mu, plain.a_n) == (0.45, 100.0)  # TF-8's short task
+
+
+# ---------------------------------------------------------------- perturbed starts
+
+
+def test_hopper_starts_are_seeded_within_their_ranges_and_feasible():
+    """x +-5 cm, base height up to 5 cm higher, pitch +-0.05 rad; the point foot's gap
+    z - l cos(pitch) (ground lowered by the foot radius) is never negative."""
+    problem = SWEEP_TARGETS["hopper"].setup("short", {}).problem
+    starts = [HOPPER_PERTURBATION.sample(problem, np.random.default_rng([0, k]))
+              for k in range(50)]
+    again = HOPPER_PERTURBATION.sample(problem, np.random.default_rng([0, 3]))
+    np.testing.assert_array_equal(again.q0, starts[3].q0)
+    q0 = np.array([s.q0 for s in starts])
+    delta = q0 - problem.q0
+    assert np.all(np.abs(delta[:, 0]) <= 0.05)
+    assert np.all((0 <= delta[:, 1]) & (delta[:, 1] <= 0.05))
+    assert np.all(np.abs(delta[:, 2]) <= 0.05) and np.all(delta[:, 3] == 0)  # leg length
+    assert np.all(np.array([s.v0 for s in starts]) == 0)
+    gaps = q0[:, 1] - q0[:, 3] * np.cos(q0[:, 2])
+    assert gaps.min() >= 0
+    assert starts[0].offsets == pytest.approx(dict(zip(("x", "z", "pitch"), delta[0, :3],
+                                                       strict=True)))
+
+
+def test_a_start_below_the_ground_is_redrawn_then_refused():
+    problem = SWEEP_TARGETS["hopper"].setup("short", {}).problem
+    sinking = Perturbation((CoordinateRange("z", -0.05, -0.01),), max_tries=5)
+    with pytest.raises(InfeasibleStart, match=r"no feasible start in 5 draws of "
+                                              r"\{'z': \[-0.05, -0.01\]\}"):
+        sinking.sample(problem, np.random.default_rng(0))
+    # half the draws of [-0.02, +0.02] sink the foot: those are drawn again
+    start = Perturbation((CoordinateRange("z", -0.02, 0.02),)).sample(
+        problem, np.random.default_rng(1))
+    assert start.offsets["z"] >= 0
+
+
+def test_perturbation_errors_name_the_fix():
+    problem = SWEEP_TARGETS["hopper"].setup("short", {}).problem
+    with pytest.raises(InvalidInput, match=r"coordinates \['q_x'\] that the plan does not have"):
+        Perturbation((CoordinateRange("q_x", 0, 1),)).sample(problem, np.random.default_rng())
+    with pytest.raises(InvalidInput, match=r"`z` range must be finite with low <= high"):
+        CoordinateRange("z", 0.1, 0.0)
+    with pytest.raises(InvalidInput, match=r"no default perturbation for the coordinates"):
+        Perturbation.from_names(("q_x", "q_z"))
+    # the defaults by name are the hopper's ranges
+    assert Perturbation.from_names(("x", "z", "pitch", "l")) == HOPPER_PERTURBATION
+
+
+# ---------------------------------------------------------------- sweeps on a LocalCluster
+
+
+def _table_counts(table: str) -> tuple[int, int, int]:
+    """(cases, verified, verified at the first attempt) from the table's row `all`."""
+    row = re.search(r"^\| all \| (\d+) \| (\d+)/\d+ .*? \| (\d+)/\d+ ", table, re.MULTILINE)
+    assert row, table
+    return int(row[1]), int(row[2]), int(row[3])
+
+
+def _as_json(record: CaseResult) -> str:
+    """The record as its case file holds it (nan compares equal as text)."""
+    return json.dumps(record.to_dict(), indent=1) + "\n"
+
+
+def _case_files(folder):
+    return sorted((folder / "cases").glob("*.json"))
+
+
+def test_sweep_runs_on_a_local_cluster_and_resumes(tmp_path, capsys):
+    """The command's sweep of 2 starts x 2 relaxations: one case file each, the table's
+    counts equal the files', a PNG chart; a rerun solves nothing new."""
+    parser = argparse.ArgumentParser()
+    add_sweep_parser(parser.add_subparsers())
+    out = tmp_path / "sweep"
+    args = parser.parse_args(["sweep", "particle", "--task", "reduced", "--starts", "2",
+                              "--relaxation", "scholtes", "linf", "--out", str(out)])
+    assert args.func(args) == 0
+    printed = capsys.readouterr().out
+    assert "4 to solve on a LocalCluster of 2 worker processes" in printed
+    assert "[4/4]" in printed and "particle (reduced): 4 cases" in printed
+
+    files = _case_files(out)
+    assert [f.stem for f in files] == sorted(c.case_id for c in SweepSpec(
+        "particle", 2, "reduced", grid={"relaxation": ["scholtes", "linf"]}).cases())
+    records = [json.loads(f.read_text()) for f in files]
+    for record in records:
+        assert {"params", "seed", "q0", "status", "success", "first_attempt_success",
+                "attempts_used", "iterations", "objective", "times", "failure"} <= set(record)
+        assert record["times"]["wall"] > 0 and record["extra"]["options"]["ipopt_threads"] == 1
+    linf = [r for r in records if r["params"] == {"relaxation": "linf"}]
+    assert all(r["extra"]["options"]["relaxation"] == "linf_penalty" for r in linf)
+    table = (out / "table.md").read_text()
+    assert _table_counts(table) == (4, sum(r["success"] for r in records),
+                                    sum(r["first_attempt_success"] for r in records))
+    assert "## By grid value" in table and "| relaxation=linf | 2 |" in table
+    assert (out / "chart.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    spec = SweepSpec("particle", starts=2, task="reduced",
+                     grid={"relaxation": ["scholtes", "linf"]})
+    result = run_sweep(spec, out, progress=False)
+    assert (result.solved, result.resumed) == (0, 4)
+    assert [_as_json(c) for c in result.cases] == [
+        (out / "cases" / f"{c.case_id}.json").read_text() for c in spec.cases()]
+    assert result.n_success == sum(r["success"] for r in records)
+    assert result.table() == (out / "table.md").read_text()
+    assert len(json.loads((out / "sweep.json").read_text())["runs"]) == 1
+
+    with pytest.raises(InvalidInput, match=r"holds another sweep \(seed: 0 there, 1 here\)"):
+        run_sweep(SweepSpec("particle", starts=2, task="reduced", seed=1), out, progress=False)
+
+
+class _StopAfterFirst(Progress):
+    """Ctrl-C as the first case is reported."""
+
+    def started(self, total, pending, cluster):
+        pass
+
+    def finished(self, record, done, pending, elapsed):
+        raise KeyboardInterrupt
+
+    def note(self, text):
+        pass
+
+
+def test_interrupted_sweep_keeps_its_finished_cases_and_resumes(tmp_path):
+    spec = SweepSpec("particle", starts=2, task="reduced")
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(spec, tmp_path, n_workers=1, progress=_StopAfterFirst())
+    assert [f.stem for f in _case_files(tmp_path)] == ["start=000"]
+    runs = json.loads((tmp_path / "sweep.json").read_text())["runs"]
+    assert [(r["solved"], r["interrupted"]) for r in runs] == [(1, True)]
+    result = run_sweep(spec, tmp_path, n_workers=1, progress=Silent())
+    assert (result.solved, result.resumed) == (1, 1) and len(_case_files(tmp_path)) == 2
+
+
+def test_a_case_that_raises_is_recorded_and_solved_again(tmp_path, monkeypatch):
+    """A start that cannot be drawn raises on the worker: the case is saved with status
+    "error" and the exception, and a rerun tries it again."""
+    below = ParticleTarget(name="particle-below", start_perturbation=Perturbation(
+        (CoordinateRange("q_z", -2.0, -1.6),), max_tries=3))  # the particle starts at 1.5 m
+    monkeypatch.setitem(SWEEP_TARGETS, "particle-below", below)
+    spec = SweepSpec("particle-below", starts=1, task="reduced")
+    result = run_sweep(spec, tmp_path, n_workers=1, progress=False)
+    (case,) = result.cases
+    assert (case.status, case.success, case.failure_kind) == ("error", False,
+                                                              "error: InfeasibleStart")
+    assert "no feasible start in 3 draws" in case.failure
+    text = _case_files(tmp_path)[0].read_text()
+    assert _as_json(CaseResult.from_dict(json.loads(text))) == text == _as_json(case)
+    assert "| error: InfeasibleStart | 1 |" in (tmp_path / "table.md").read_text()
+    assert run_sweep(spec, tmp_path, n_workers=1, progress=False).solved == 1
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["hopper", "--starts", "0"], "`starts` must be a positive integer, got 0"),
+    (["monoped"], "plan `monoped` solves itself"),
+    (["hopper", "--friction", "-1"], "`friction` values must be finite and >= 0"),
+    (["hopper", "--workers", "0"], "`n_workers` must be a positive integer, got 0"),
+])
+def test_command_exits_2_on_bad_input(argv, message, capsys, tmp_path):
+    parser = argparse.ArgumentParser()
+    add_sweep_parser(parser.add_subparsers())
+    args = parser.parse_args(["sweep", *argv, "--out", str(tmp_path / "never")])
+    assert args.func(args) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "never").exists()
