@@ -80,7 +80,11 @@ def test_spec_expands_the_grid_times_the_starts():
 
 
 def test_options_parameters_set_relaxation_and_discretisation():
+    from tfcontact.mpcc import RELAXATIONS
     from tfcontact.scenes.hopper import hopper_options
+    from tfcontact.sweep.spec import RELAXATION_NAMES
+
+    assert RELAXATION_NAMES == tuple(RELAXATIONS)  # the parser's help names them all
 
     options = hopper_options("short")
     relaxed = GRID_PARAMETERS["relaxation"].apply(options, "l1")
@@ -264,3 +268,18 @@ def test_command_exits_2_on_bad_input(argv, message, capsys, tmp_path):
     assert args.func(args) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "never").exists()
+
+
+def test_the_parser_does_not_load_the_solver():
+    """`tfcontact --help` builds the sweep's parser: CasADi, Dask and the plans wait for a
+    sweep to run."""
+    import subprocess
+    import sys
+
+    code = ("import sys, argparse, tfcontact.sweep.cli as c; "
+            "c.add_sweep_parser(argparse.ArgumentParser().add_subparsers()); "
+            "print(sorted(m for m in ('casadi', 'distributed', 'tfcontact.scenes') "
+            "if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"

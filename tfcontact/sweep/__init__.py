@@ -6,57 +6,56 @@
     print(result.table())
 
 Each case is saved as its own JSON file as it finishes, so a rerun resumes; the sweep
-folder ends with `table.md` and `chart.png`.
+folder ends with `table.md` and `chart.png`. The names below are imported on first use,
+so that the command line's parser (`tfcontact.sweep.cli`) does not load the solver.
 """
 
-from tfcontact.sweep.cli import add_sweep_parser, sweep_command
-from tfcontact.sweep.perturbation import (
-    DEFAULT_RANGES,
-    CoordinateRange,
-    InfeasibleStart,
-    Perturbation,
-    PerturbedStart,
-)
-from tfcontact.sweep.results import CaseFileError, CaseResult, SweepResult
-from tfcontact.sweep.run import Progress, ProgressLines, Silent, run_sweep, solve_case
-from tfcontact.sweep.spec import GRID_PARAMETERS, GridParameter, SweepCase, SweepSpec
-from tfcontact.sweep.targets import (
-    HOPPER_PERTURBATION,
-    PARTICLE_PERTURBATION,
-    SWEEP_TARGETS,
-    HopperTarget,
-    ParticleTarget,
-    PlanTarget,
-    SweepTarget,
-    sweep_target,
-)
+from __future__ import annotations
 
-__all__ = [
-    "DEFAULT_RANGES",
-    "GRID_PARAMETERS",
-    "HOPPER_PERTURBATION",
-    "SWEEP_TARGETS",
-    "CaseFileError",
-    "CaseResult",
-    "CoordinateRange",
-    "GridParameter",
-    "HopperTarget",
-    "PARTICLE_PERTURBATION",
-    "ParticleTarget",
-    "InfeasibleStart",
-    "Perturbation",
-    "PerturbedStart",
-    "PlanTarget",
-    "Progress",
-    "ProgressLines",
-    "Silent",
-    "SweepCase",
-    "SweepResult",
-    "SweepSpec",
-    "SweepTarget",
-    "add_sweep_parser",
-    "run_sweep",
-    "solve_case",
-    "sweep_command",
-    "sweep_target",
-]
+import importlib
+from typing import Any
+
+# public name -> module
+_EXPORTS: dict[str, str] = {
+    "add_sweep_parser": "tfcontact.sweep.cli",
+    "sweep_command": "tfcontact.sweep.cli",
+    "DEFAULT_RANGES": "tfcontact.sweep.perturbation",
+    "CoordinateRange": "tfcontact.sweep.perturbation",
+    "InfeasibleStart": "tfcontact.sweep.perturbation",
+    "Perturbation": "tfcontact.sweep.perturbation",
+    "PerturbedStart": "tfcontact.sweep.perturbation",
+    "CaseFileError": "tfcontact.sweep.results",
+    "CaseResult": "tfcontact.sweep.results",
+    "SweepResult": "tfcontact.sweep.results",
+    "Progress": "tfcontact.sweep.run",
+    "ProgressLines": "tfcontact.sweep.run",
+    "Silent": "tfcontact.sweep.run",
+    "run_sweep": "tfcontact.sweep.run",
+    "solve_case": "tfcontact.sweep.run",
+    "GRID_PARAMETERS": "tfcontact.sweep.spec",
+    "GridParameter": "tfcontact.sweep.spec",
+    "SweepCase": "tfcontact.sweep.spec",
+    "SweepSpec": "tfcontact.sweep.spec",
+    "HOPPER_PERTURBATION": "tfcontact.sweep.targets",
+    "PARTICLE_PERTURBATION": "tfcontact.sweep.targets",
+    "SWEEP_TARGETS": "tfcontact.sweep.targets",
+    "HopperTarget": "tfcontact.sweep.targets",
+    "ParticleTarget": "tfcontact.sweep.targets",
+    "PlanTarget": "tfcontact.sweep.targets",
+    "SweepTarget": "tfcontact.sweep.targets",
+    "sweep_target": "tfcontact.sweep.targets",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'tfcontact.sweep' has no attribute '{name}'")
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_EXPORTS])

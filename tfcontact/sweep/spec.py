@@ -14,8 +14,6 @@ from typing import Any
 import numpy as np
 
 from tfcontact.errors import InvalidInput, positive_int
-from tfcontact.fesd import Fesd, Standard
-from tfcontact.mpcc import RELAXATIONS
 
 GridValue = float | str
 
@@ -71,21 +69,32 @@ class NumberParameter(GridParameter):
         return value
 
 
+# The solver layers (CasADi) are imported where a value is checked or applied, so that
+# the command line's parser (`tfcontact --help`) stays light.
+
+RELAXATION_NAMES = ("scholtes", "l1", "linf")
+"""The keys of `tfcontact.mpcc.RELAXATIONS` (a test keeps them equal)."""
+
+
 @dataclass(frozen=True)
 class RelaxationParameter(GridParameter):
     """The MPCC relaxation by its short name (`tfcontact.mpcc.RELAXATIONS`)."""
 
     key: str = "relaxation"
     level: str = "options"
-    help: str = "MPCC relaxation: " + ", ".join(RELAXATIONS)
+    help: str = "MPCC relaxation: " + ", ".join(RELAXATION_NAMES)
 
     def check(self, value: object) -> GridValue:
+        from tfcontact.mpcc import RELAXATIONS
+
         if value not in RELAXATIONS:
             raise InvalidInput(f"`relaxation` must be one of {', '.join(RELAXATIONS)}, "
                                f"got {value!r}")
         return str(value)
 
     def apply(self, options: Any, value: GridValue) -> Any:
+        from tfcontact.mpcc import RELAXATIONS
+
         return dataclasses.replace(options, relaxation=RELAXATIONS[str(value)]())
 
 
@@ -107,6 +116,8 @@ class SchemeParameter(GridParameter):
         return str(value)
 
     def apply(self, options: Any, value: GridValue) -> Any:
+        from tfcontact.fesd import Fesd, Standard
+
         if value == "standard":
             return dataclasses.replace(options, method=Standard())
         method = options.method if isinstance(options.method, Fesd) else Fesd()
