@@ -11,9 +11,11 @@ import sys
 import time
 import uuid
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -158,7 +160,6 @@ def run_sweep(spec: SweepSpec, out_dir: Path | str, *, scheduler: str | None = N
     cases_dir = out / CASES_FOLDER
     header = {**spec.to_dict(), "perturbation": perturbation.to_dict()}
     runs = _previous_runs(out / SWEEP_FILE, header)
-    cases_dir.mkdir(parents=True, exist_ok=True)
 
     records: dict[str, CaseResult] = {}
     pending: list[SweepCase] = []
@@ -184,16 +185,20 @@ def run_sweep(spec: SweepSpec, out_dir: Path | str, *, scheduler: str | None = N
     reporter.started(len(spec.cases()), len(pending), cluster if pending else "nothing")
     solved: list[CaseResult] = []
     if pending:
-        run = {"date": _now(), "cluster": cluster, "cores": os.cpu_count(),
-               "load_start": round(os.getloadavg()[0], 2)}
-        try:
-            _run(pending, spec, target, scheduler, n_workers, reporter, cases_dir, solved)
-        finally:  # also when interrupted: the folder tells which runs made its cases
-            run.update(solved=len(solved), interrupted=len(solved) < len(pending),
-                       wall_time=round(time.perf_counter() - began, 1),
-                       load_end=round(os.getloadavg()[0], 2))
-            runs.append(run)
-            _write_json(out / SWEEP_FILE, {**header, "runs": runs})
+        # Connected (or the cluster started) before the folder is written: a bad address
+        # leaves no trace.
+        with _client(scheduler, n_workers) as client:
+            cases_dir.mkdir(parents=True, exist_ok=True)
+            run = {"date": _now(), "cluster": cluster, "cores": os.cpu_count(),
+                   "load_start": round(os.getloadavg()[0], 2)}
+            try:
+                _solve(client, pending, spec, target, reporter, cases_dir, solved)
+            finally:  # also when interrupted: the folder tells which runs made its cases
+                run.update(solved=len(solved), interrupted=len(solved) < len(pending),
+                           wall_time=round(time.perf_counter() - began, 1),
+                           load_end=round(os.getloadavg()[0], 2))
+                runs.append(run)
+                _write_json(out / SWEEP_FILE, {**header, "runs": runs})
     else:
         _write_json(out / SWEEP_FILE, {**header, "runs": runs})
     records.update((r.case_id, r) for r in solved)
@@ -242,30 +247,44 @@ def _ignore_interrupts() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _run(pending: list[SweepCase], spec: SweepSpec, target: SweepTarget,
-         scheduler: str | None, n_workers: int, reporter: Progress, cases_dir: Path,
-         solved: list[CaseResult]) -> None:
-    """Solve the pending cases, saving, reporting and appending to `solved` each record as
-    it finishes."""
-    from distributed import Client, LocalCluster, as_completed
+@contextmanager
+def _client(scheduler: str | None, n_workers: int) -> Iterator[Any]:
+    """A `distributed.Client` of a new LocalCluster (closed at the end) or of `scheduler`."""
+    from distributed import Client, LocalCluster
 
-    cluster = None
-    if scheduler is None:
-        # The scheduler's HTTP server (the dashboard with bokeh) on any free port: two
-        # sweeps at once would otherwise both claim 8787 (the second with a warning).
-        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                               dashboard_address=":0", silence_logs=logging.ERROR)
-        client = Client(cluster)
-        # Ctrl-C in a terminal reaches the whole process group: the workers leave it to
-        # this process, which cancels the cases and closes them (no worker tracebacks).
-        client.run(_ignore_interrupts)
-    else:
+    if scheduler is not None:
         try:
             client = Client(scheduler, timeout="20s")
         except OSError as error:  # includes the connection's timeout
             raise InvalidInput(f"no Dask scheduler answers at {scheduler} ({error}); start "
                                "one (`dask scheduler`) with workers that have tfcontact "
                                "installed (`dask worker ADDRESS --nthreads 1`)") from error
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    # The scheduler's HTTP server (the dashboard with bokeh) on any free port: two sweeps
+    # at once would otherwise both claim 8787 (the second with a warning).
+    cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                           dashboard_address=":0", silence_logs=logging.ERROR)
+    client = Client(cluster)
+    try:
+        # Ctrl-C in a terminal reaches the whole process group: the workers leave it to
+        # this process, which cancels the cases and closes them (no worker tracebacks).
+        client.run(_ignore_interrupts)
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def _solve(client: Any, pending: list[SweepCase], spec: SweepSpec, target: SweepTarget,
+           reporter: Progress, cases_dir: Path, solved: list[CaseResult]) -> None:
+    """Solve the pending cases, saving, reporting and appending to `solved` each record as
+    it finishes; on any exit the cases still running are cancelled."""
+    from distributed import as_completed
+
     futures = []
     try:
         token = uuid.uuid4().hex[:8]
@@ -290,6 +309,3 @@ def _run(pending: list[SweepCase], spec: SweepSpec, target: SweepTarget,
         unfinished = [f for f in futures if not f.done()]
         if unfinished:
             client.cancel(unfinished)
-        client.close()
-        if cluster is not None:
-            cluster.close()
