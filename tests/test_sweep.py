@@ -104,6 +104,31 @@ def test_hopper_target_sets_friction_and_a_n_in_its_task():
     assert (plain.mu, plain.a_n) == (0.45, 100.0)  # TF-8's short task
 
 
+def test_failure_reasons_name_what_failed():
+    """The solver's last IPOPT status, the verification check outside its tolerance, or
+    the goal missed (a stand-in for `ContactResult`: only the fields read)."""
+    from types import SimpleNamespace as NS
+
+    from tfcontact.ocp.goals import GoalCheck, TaskReport
+    from tfcontact.sweep.results import failure_reason
+
+    tolerances = {"end_state": 5e-2, "gap": 1e-3, "cone": 1e-2, "clock": 1e-6}
+    passed = NS(passed=True, tolerances=tolerances)
+    ocp = NS(success=False, ipopt_status="Infeasible_Problem_Detected", residual=3e-3, n_nlps=10)
+    done = TaskReport(())
+    assert failure_reason(NS(ocp=ocp, status="nlp_failed", verification=passed, task=done)) \
+        == ("nlp_failed: last IPOPT status Infeasible_Problem_Detected, complementarity "
+            "residual 3.00e-03 after 10 NLPs", "nlp_failed")
+    replay = NS(passed=False, tolerances=tolerances, end_state_deviation=2.9, min_gap=0.0,
+                open_loop_unstable=False, clock_monotone=True, clock_end_error=0.0)
+    assert failure_reason(NS(ocp=NS(success=True), verification=replay, task=done)) == (
+        "end-state deviation 2.90e+00 > 5e-02", "verification: end state")
+    missed = GoalCheck("end x", "end position x", 0.62, 0.7, False, "goal_missed")
+    reason, kind = failure_reason(NS(ocp=NS(success=True), verification=passed,
+                                     task=TaskReport((missed,))))
+    assert kind == "task: goal_missed" and reason == missed.line().strip()
+
+
 # ---------------------------------------------------------------- perturbed starts
 
 

@@ -33,8 +33,9 @@ class CaseResult:
         case_id, plan, task, params, start, seed: the `SweepCase` (and its sweep's plan).
         offsets: what the perturbation added to the nominal start, by coordinate name.
         q0, v0: the perturbed start state; q_names: the names of q0's entries.
-        status: the plan's `ContactResult.status` ("converged", "verification_failed",
-            "nlp_failed", "not_converged") or "error" (the solve raised).
+        status: the plan's `ContactResult.status` ("converged", "nlp_failed",
+            "not_converged", "verification_failed", "goal_missed", "no_motion") or "error"
+            (the solve raised).
         success: converged and verified (the last attempt's plan).
         first_attempt_success: the first attempt (unperturbed guess) was verified.
         attempts_used: solves made (`ContactSolverOptions.attempts` at most).
@@ -51,8 +52,8 @@ class CaseResult:
         failure_kind: a short class of `failure` for counting ("nlp_failed",
             "verification: end state", ...; None when it succeeded).
         verification: the verification's summary line ("" for an error).
-        extra: the draws the feasible start took, each attempt (`Attempt` as a dict) and
-            the solver settings.
+        extra: the draws the feasible start took, each attempt (`Attempt` as a dict), the
+            solver settings and the task's goals as measured (`TaskReport.to_dict`).
     """
 
     case_id: str
@@ -111,7 +112,8 @@ class CaseResult:
                    "wall": float(wall_time), "cpu": float(cpu_time)},
             failure=failure, failure_kind=kind, verification=result.verification.summary(),
             extra={"draws": start.tries, "attempts": [asdict(a) for a in attempts],
-                   "options": _options_record(result.options)},
+                   "options": _options_record(result.options),
+                   "task": result.task.to_dict()},
         )
 
     @classmethod
@@ -179,14 +181,18 @@ def _options_record(options: Any) -> dict[str, Any]:
 
 
 def failure_reason(result: Any) -> tuple[str, str]:
-    """(why, short class) of a failed `ContactResult`: the homotopy's status, or the
-    verification checks outside their tolerances."""
+    """(why, short class) of a failed `ContactResult`: the homotopy's status, the
+    verification checks outside their tolerances, or the task's goals it missed."""
     ocp = result.ocp
     if not ocp.success:
         return (f"{result.status}: last IPOPT status {ocp.ipopt_status or 'none'}, "
                 f"complementarity residual {ocp.residual:.2e} after {ocp.n_nlps} NLPs"), \
             result.status
     v = result.verification
+    task = result.task
+    if v.passed and not task.passed:  # the physics held, a goal missed
+        missed = [c.line().strip() for c in task.checks if not c.passed]
+        return "; ".join(missed) or task.summary(), f"task: {task.status}"
     tol = v.tolerances
     failed = []
     if v.end_state_deviation > tol.get("end_state", math.inf) and not v.open_loop_unstable:
