@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 from pathlib import Path
 from typing import Any
@@ -66,6 +67,9 @@ def sweep_command(args: argparse.Namespace) -> int:
         print(f"tfcontact sweep: error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
+        # distributed's own cancelled callback then logs a NameError traceback through
+        # tornado (distributed 2026.8, utils.sync): noise after a clean stop
+        logging.getLogger("tornado.application").setLevel(logging.CRITICAL)
         print(f"tfcontact sweep: interrupted; the finished cases are saved in {out}/cases, "
               "the same command resumes the sweep", file=sys.stderr)
         return EXIT_INTERRUPTED
