@@ -44,8 +44,6 @@ from tfcontact.sweep import (
     ({"plan": "hopper", "seed": -1}, r"`seed` must be a non-negative integer, got -1"),
     ({"plan": "hopper", "grid": {"gravity": [9.8]}},
      r"unknown grid key `gravity`; grid keys: friction, a_n, relaxation, scheme"),
-    ({"plan": "particle", "grid": {"a_n": [10.0]}},
-     r"plan `particle` cannot vary `a_n` \(its problem-level grid keys: friction\)"),
     ({"plan": "hopper", "grid": {"friction": []}}, r"grid key `friction` has no values"),
     ({"plan": "hopper", "grid": {"friction": [-0.1]}},
      r"`friction` values must be finite and >= 0 .*, got -0.1"),
@@ -102,6 +100,15 @@ def test_hopper_target_sets_friction_and_a_n_in_its_task():
     assert setup.options.attempts == 3 and setup.problem.n_intervals == 20
     plain = target.setup("short", {}).problem.system.cls.contacts[0]
     assert (plain.mu, plain.a_n) == (0.45, 100.0)  # TF-8's short task
+
+
+def test_particle_target_sets_friction_and_a_n_in_its_problem():
+    target = SWEEP_TARGETS["particle"]
+    contact = target.setup("reduced", {"friction": 0.3, "a_n": 50.0}).problem.system.cls \
+        .contacts[0]
+    assert (contact.mu, contact.a_n) == (0.3, 50.0)
+    plain = target.setup("reduced", {}).problem.system.cls.contacts[0]
+    assert plain.mu == 0.6 and plain.a_n == pytest.approx(9.81)  # TF-3: a_n = g
 
 
 def test_failure_reasons_name_what_failed():

@@ -119,14 +119,16 @@ def particle_friction_problem(
     n_intervals: int = 20,
     max_force: float = 10.0,
     mu: float = 0.6,
+    a_n: float = G,
 ) -> ContactProblem:
     """TF-3: an inelastic particle with friction, pushed horizontally.
 
     q = (x, z) [m], u_x in [-10, 10] N (u_z fixed at 0), v' = (u_x, -g); ground z >= 0,
-    e = 0, mu = 0.6, a_n = g; from (0, 1.5, 0, 0) to x(T) = (3, 0, 0, 0) at T = 2 s; cost
-    int u_x^2 dt; speed of time in [0.99, 10] (the reference implementation's values).
+    e = 0, mu = 0.6, a_n = g (the time-freezing gain, `a_n`); from (0, 1.5, 0, 0) to
+    x(T) = (3, 0, 0, 0) at T = 2 s; cost int u_x^2 dt; speed of time in [0.99, 10] (the
+    reference implementation's values).
     """
-    cls = point_mass(2, mu=mu, a_n=G, controlled=True)
+    cls = point_mass(2, mu=mu, a_n=a_n, controlled=True)
     tf = time_freeze(cls)
     y, u = tf.y, tf.u
     state = ca.vertcat(y[tf.q_index], y[tf.v_index])

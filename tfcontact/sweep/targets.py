@@ -87,12 +87,13 @@ PARTICLE_PERTURBATION = Perturbation((
 class ParticleTarget(SweepTarget):
     """TF-3, the particle with friction pushed to x = 3 m (`particle_friction_problem`),
     with the options its CI test solves it with (Radau IIA 2, N_FE = 3, l_inf penalty,
-    3 attempts); the friction coefficient varies. Tasks: "tf3" (N = 20) and "reduced"
-    (N = 6, about 1 s a solve: the cheap sweep for CI and for trying a cluster)."""
+    3 attempts); the friction coefficient and the auxiliary gain a_n vary. Tasks: "tf3"
+    (N = 20) and "reduced" (N = 6, about 1 s a solve: the cheap sweep for CI and for
+    trying a cluster)."""
 
     name: str = "particle"
     tasks: tuple[str, ...] = ("tf3", "reduced")
-    problem_parameters: frozenset[str] = frozenset({"friction"})
+    problem_parameters: frozenset[str] = frozenset({"friction", "a_n"})
     start_perturbation: Perturbation = field(default=PARTICLE_PERTURBATION)
 
     def setup(self, task: str, params: Mapping[str, float]) -> PlanSetup:
@@ -102,8 +103,9 @@ class ParticleTarget(SweepTarget):
         from tfcontact.scenes.particle_ocps import BALL_GROUND, particle_friction_problem
 
         _check_task(self, task)
-        mu = {"mu": params["friction"]} if "friction" in params else {}
-        problem = particle_friction_problem(n_intervals=20 if task == "tf3" else 6, **mu)
+        data = {name: params[key] for key, name in (("friction", "mu"), ("a_n", "a_n"))
+                if key in params}
+        problem = particle_friction_problem(n_intervals=20 if task == "tf3" else 6, **data)
         options = ContactSolverOptions(scheme=RadauIIA(2), n_finite_elements=3,
                                        relaxation=LinfPenalty(), attempts=3)
         return PlanSetup(None, problem, options, BALL_GROUND)
