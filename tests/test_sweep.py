@@ -8,6 +8,7 @@ import argparse
 import json
 import re
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -43,7 +44,11 @@ from tfcontact.sweep import (
      r"plan `hopper` has no task `sprint`; tasks: short, long, bench"),
     ({"plan": "hopper", "seed": -1}, r"`seed` must be a non-negative integer, got -1"),
     ({"plan": "hopper", "grid": {"gravity": [9.8]}},
-     r"unknown grid key `gravity`; grid keys: friction, a_n, relaxation, scheme"),
+     r"unknown grid key `gravity`; grid keys: friction, a_n, relaxation, scheme, n_fe"),
+    ({"plan": "hopper", "grid": {"n_fe": [0]}},
+     r"`n_fe` values must be whole numbers >= 1, got 0"),
+    ({"plan": "hopper", "grid": {"n_fe": ["2.5"]}},
+     r"`n_fe` values must be whole numbers >= 1, got '2.5'"),
     ({"plan": "hopper", "grid": {"friction": []}}, r"grid key `friction` has no values"),
     ({"plan": "hopper", "grid": {"friction": [-0.1]}},
      r"`friction` values must be finite and >= 0 .*, got -0.1"),
@@ -90,6 +95,45 @@ def test_options_parameters_set_relaxation_and_discretisation():
     assert isinstance(GRID_PARAMETERS["scheme"].apply(options, "standard").method, Standard)
     # FESD keeps the plan's own settings (the hopper's gamma_h = 0.9)
     assert GRID_PARAMETERS["scheme"].apply(options, "fesd").method == Fesd(gamma_h=0.9)
+    # the step size: finite elements per control interval, "2" from the command line
+    n_fe = GRID_PARAMETERS["n_fe"]
+    assert n_fe.check("2") == n_fe.check(2) == "2" and n_fe.label("2") == "n_fe=2"
+    assert options.n_finite_elements == 3
+    assert n_fe.apply(options, "2").n_finite_elements == 2
+
+
+def test_hopper_target_plans_from_the_start_it_is_given():
+    """A perturbed start's reference spline begins at that start (the task's later way
+    points unchanged); `reference_from_start=False` keeps the task's first way point."""
+    from tfcontact.scenes.hopper import hopper_task
+    from tfcontact.sweep.perturbation import PerturbedStart
+    from tfcontact.sweep.targets import HopperTarget
+
+    task = hopper_task("short")
+    state = task.x0 + np.array([0.04, 0.02, 0.03, 0, 0, 0, 0, 0])
+    moved = task.starting_at(state)
+    assert moved.reference(np.array([0.0]))[0] == pytest.approx(state)
+    assert moved.waypoints[1:] == task.waypoints[1:]
+    end = np.array([task.horizon])
+    assert moved.reference(end) == pytest.approx(task.reference(end))
+    with pytest.raises(InvalidInput, match="8 finite numbers"):
+        task.starting_at(state[:4])
+
+    start = PerturbedStart(state[:4], state[4:], {"x": 0.04}, 1)
+    for target, first in ((HopperTarget(), state), (HopperTarget(reference_from_start=False),
+                                                    task.x0)):
+        setup = target.setup("short", {})
+        problem = target.from_start(setup, "short", {}, start)
+        assert problem.q0 == pytest.approx(state[:4])
+        # the running cost at the clock's start is the tracking error to `first`
+        tf = problem.system
+        cost = ca.Function("cost", [tf.y, tf.u], [problem.running_cost])
+        y0 = np.asarray(tf.initial_state(state[:4], state[4:])).ravel()
+        weights = np.asarray(task.state_weights)
+        expected = float(np.sum(weights * (state - first) ** 2))
+        assert float(cost(y0, np.zeros(2))) == pytest.approx(expected, abs=1e-9)
+    assert HopperTarget().description() != HopperTarget(reference_from_start=False) \
+        .description()
 
 
 def test_hopper_target_sets_friction_and_a_n_in_its_task():

@@ -7,7 +7,7 @@ reference is a cubic spline through the listed way points, sampled in physical t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -69,6 +69,16 @@ class HopperTask:
     @property
     def x_end(self) -> np.ndarray:
         return np.asarray(self.waypoints[-1], dtype=float)
+
+    def starting_at(self, state: np.ndarray) -> HopperTask:
+        """The same task from another start state (q, v): its reference spline begins
+        there and passes through the same later way points, so a start moved ahead of or
+        behind the first way point is not pulled back to it."""
+        state = np.asarray(state, dtype=float)
+        if state.shape != (8,) or not np.all(np.isfinite(state)):
+            raise InvalidInput(f"a hopper start state is 8 finite numbers (q, v), got "
+                               f"shape {state.shape}")
+        return replace(self, waypoints=(tuple(float(s) for s in state), *self.waypoints[1:]))
 
     def reference(self, t: np.ndarray) -> np.ndarray:
         """The reference states at physical times t, shape (len(t), 8)."""

@@ -20,7 +20,6 @@ from typing import Any, TextIO
 import numpy as np
 
 from tfcontact.errors import InvalidInput, positive_int
-from tfcontact.sweep.perturbation import perturbed_problem
 from tfcontact.sweep.report import chart
 from tfcontact.sweep.results import ERROR, CaseFileError, CaseResult, SweepResult
 from tfcontact.sweep.spec import GRID_PARAMETERS, SweepCase, SweepSpec
@@ -30,7 +29,7 @@ SWEEP_FILE = "sweep.json"
 CASES_FOLDER = "cases"
 # What a resumed sweep must share with the one that wrote the folder: its cases' starts
 # and solver setup. The grid and the number of starts may grow.
-_SAME = ("plan", "task", "seed", "threads_per_case", "perturbation")
+_SAME = ("plan", "task", "seed", "threads_per_case", "perturbation", "target")
 
 
 def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) -> CaseResult:
@@ -49,7 +48,8 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
                                                                     threads=threads))
     rng = np.random.default_rng([case.seed, case.start])
     start = target.perturbation(setup).sample(setup.problem, rng)
-    result = solve_contact(perturbed_problem(setup.problem, start), options, verbose=False)
+    problem = target.from_start(setup, task, problem_params, start)
+    result = solve_contact(problem, options, verbose=False)
     return CaseResult.from_contact(case, target.name, task, start, result,
                                    time.perf_counter() - started,
                                    cpu_time=time.process_time() - cpu)
@@ -158,7 +158,8 @@ def run_sweep(spec: SweepSpec, out_dir: Path | str, *, scheduler: str | None = N
     perturbation = target.perturbation(target.setup(spec.task, {}))
     out = Path(out_dir)
     cases_dir = out / CASES_FOLDER
-    header = {**spec.to_dict(), "perturbation": perturbation.to_dict()}
+    header = {**spec.to_dict(), "perturbation": perturbation.to_dict(),
+              "target": target.description()}
     runs = _previous_runs(out / SWEEP_FILE, header)
 
     records: dict[str, CaseResult] = {}
@@ -235,7 +236,8 @@ def _previous_runs(path: Path, header: dict) -> list[dict]:
     except (OSError, ValueError) as error:
         raise InvalidInput(f"{path} is unreadable ({error}); remove it or choose another "
                            "folder") from error
-    differ = [k for k in _SAME if before.get(k) != header[k]]
+    # A sweep file from before targets described themselves: the target's defaults then.
+    differ = [k for k in _SAME if before.get(k, {} if k == "target" else None) != header[k]]
     if differ:
         shown = "; ".join(f"{k}: {before.get(k)!r} there, {header[k]!r} here" for k in differ)
         raise InvalidInput(f"{path.parent} holds another sweep ({shown}); choose another "

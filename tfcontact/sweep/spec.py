@@ -124,6 +124,30 @@ class SchemeParameter(GridParameter):
         return dataclasses.replace(options, method=method)
 
 
+@dataclass(frozen=True)
+class FiniteElementsParameter(GridParameter):
+    """Finite elements per control interval, N_FE (`ContactSolverOptions.n_finite_elements`):
+    the integration step, h = T / (N N_FE) in numerical time, for every plan alike."""
+
+    key: str = "n_fe"
+    level: str = "options"
+    help: str = "finite elements per control interval N_FE (the step h = T / (N N_FE))"
+
+    def check(self, value: object) -> GridValue:
+        if isinstance(value, str):
+            try:
+                value = int(value)
+            except ValueError:
+                raise InvalidInput(f"`n_fe` values must be whole numbers >= 1, got {value!r}") \
+                    from None
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+            raise InvalidInput(f"`n_fe` values must be whole numbers >= 1, got {value!r}")
+        return str(int(value))
+
+    def apply(self, options: Any, value: GridValue) -> Any:
+        return dataclasses.replace(options, n_finite_elements=int(value))
+
+
 GRID_PARAMETERS: dict[str, GridParameter] = {p.key: p for p in (
     NumberParameter("friction", "Coulomb friction coefficient mu of every contact [-]",
                     minimum=0.0, strict=False),
@@ -131,6 +155,7 @@ GRID_PARAMETERS: dict[str, GridParameter] = {p.key: p for p in (
                     minimum=0.0, strict=True),
     RelaxationParameter(),
     SchemeParameter(),
+    FiniteElementsParameter(),
 )}
 """The grid's keys, in the order cases and tables list them."""
 

@@ -7,9 +7,16 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from tfcontact.errors import InvalidInput
 from tfcontact.scenes import PLANS, PlanSetup
-from tfcontact.sweep.perturbation import CoordinateRange, Perturbation
+from tfcontact.sweep.perturbation import (
+    CoordinateRange,
+    Perturbation,
+    PerturbedStart,
+    perturbed_problem,
+)
 
 
 class SweepTarget(ABC):
@@ -30,6 +37,17 @@ class SweepTarget(ABC):
     def perturbation(self, setup: PlanSetup) -> Perturbation:
         """The start perturbation (default: `Perturbation.from_names` of the coordinates)."""
         return Perturbation.from_names(tuple(setup.problem.system.cls.q_names))
+
+    def from_start(self, setup: PlanSetup, task: str, params: Mapping[str, float],
+                   start: PerturbedStart):
+        """The `ContactProblem` solved from `start` (default: the plan's problem with only
+        its start state replaced)."""
+        return perturbed_problem(setup.problem, start)
+
+    def description(self) -> dict:
+        """What else defines this target's cases, for the sweep file (a resumed sweep must
+        match it); default none."""
+        return {}
 
 
 HOPPER_PERTURBATION = Perturbation((
@@ -52,28 +70,53 @@ def _check_task(target: SweepTarget, task: str) -> None:
 class HopperTarget(SweepTarget):
     """The hopper plan (`tfcontact.scenes.hopper`, TF-8): the plan's problem and options
     (`hopper_problem`, `hopper_options`), its friction coefficient and a_n set in its
-    `HopperTask`. Tasks: `hopper_task`'s ("short" as `tfcontact plan hopper`)."""
+    `HopperTask`. Tasks: `hopper_task`'s ("short" as `tfcontact plan hopper`).
+
+    `reference_from_start`: a perturbed start's task tracks a reference spline that begins
+    at that start (`HopperTask.starting_at`), as a user planning from where the robot
+    stands would set it; False keeps the spline's first way point, pulling the start back
+    to it (the first sweep, benchmarks/sweeps/hopper: every start moved more than 3 cm
+    ahead of it failed).
+    """
 
     name: str = "hopper"
     tasks: tuple[str, ...] = ("short", "long", "bench")
     problem_parameters: frozenset[str] = frozenset({"friction", "a_n"})
     start_perturbation: Perturbation = field(default=HOPPER_PERTURBATION)
+    reference_from_start: bool = True
 
     def setup(self, task: str, params: Mapping[str, float]) -> PlanSetup:
-        from tfcontact.scenes.hopper import hopper_options, hopper_problem, hopper_task
+        from tfcontact.scenes.hopper import hopper_options, hopper_problem
 
-        _check_task(self, task)
-        changes = {"mu": params.get("friction"), "a_n": params.get("a_n")}
-        data = dataclasses.replace(hopper_task(task),
-                                   **{k: v for k, v in changes.items() if v is not None})
-        robot, ground, problem = hopper_problem(data)
-        options = hopper_options(data)
+        robot, ground, problem = hopper_problem(self._task(task, params))
+        options = hopper_options(self._task(task, params))
         scene = {"terrain": {"type": "flat", "height": float(ground.height),
                              "normal": [float(c) for c in ground.normal]}}
         return PlanSetup(robot, problem, options, scene)
 
     def perturbation(self, setup: PlanSetup) -> Perturbation:
         return self.start_perturbation
+
+    def from_start(self, setup: PlanSetup, task: str, params: Mapping[str, float],
+                   start: PerturbedStart):
+        if not self.reference_from_start:
+            return perturbed_problem(setup.problem, start)
+        from tfcontact.scenes.hopper import hopper_problem
+
+        data = self._task(task, params).starting_at(np.concatenate([start.q0, start.v0]))
+        return hopper_problem(data)[2]
+
+    def description(self) -> dict:
+        return {"reference": "from the start" if self.reference_from_start
+                else "the task's first way point"}
+
+    def _task(self, task: str, params: Mapping[str, float]):
+        from tfcontact.scenes.hopper import hopper_task
+
+        _check_task(self, task)
+        changes = {"mu": params.get("friction"), "a_n": params.get("a_n")}
+        return dataclasses.replace(hopper_task(task),
+                                   **{k: v for k, v in changes.items() if v is not None})
 
 
 PARTICLE_PERTURBATION = Perturbation((
