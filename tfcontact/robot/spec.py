@@ -25,6 +25,15 @@ BASES: tuple[str, ...] = ("fixed", "planar", "planar_xz", "floating")
 #: Bases whose motion stays in the world x-z plane (one tangent direction per contact).
 PLANAR_BASES: tuple[str, ...] = ("planar", "planar_xz")
 
+#: The base joint's coordinates of each base, in order, with their units.
+BASE_COORDINATES: dict[str, tuple[tuple[str, str], ...]] = {
+    "fixed": (),
+    "planar": (("x", "m"), ("z", "m"), ("pitch", "rad")),
+    "planar_xz": (("x", "m"), ("z", "m")),
+    "floating": (("x", "m"), ("y", "m"), ("z", "m"), ("yaw", "rad"), ("pitch", "rad"),
+                 ("roll", "rad")),
+}
+
 
 @dataclass(frozen=True)
 class ContactSpec:

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from tfcontact.errors import InvalidInput, RobotLoadError, TfcontactError
+from tfcontact.robot.spec import BASE_COORDINATES
 from tfcontact.viz.trajectory import Trajectory, physical_time
 
 GROUND_NORMAL = (0.0, 0.0, 1.0)
@@ -452,13 +453,6 @@ BASE_MEANINGS: dict[str, str] = {
                 "q_base = (x, y, z [m], yaw, pitch, roll [rad]), "
                 "R = Rz(yaw) Ry(pitch) Rx(roll)",
 }
-_BASE_DOFS: dict[str, tuple[tuple[str, str], ...]] = {
-    "fixed": (),
-    "planar": (("x", "m"), ("z", "m"), ("pitch", "rad")),
-    "planar_xz": (("x", "m"), ("z", "m")),
-    "floating": (("x", "m"), ("y", "m"), ("z", "m"), ("yaw", "rad"), ("pitch", "rad"),
-                 ("roll", "rad")),
-}
 _RATE_UNITS = {"m": "m/s", "rad": "rad/s", "-": "-"}
 _FORCE_UNITS = {"m": "N", "rad": "N m", "-": "-"}
 
@@ -507,8 +501,8 @@ def _dof_units(model: Any, base: str) -> list[tuple[str, str]]:
     for j in range(1, model.njoints):
         joint, name = model.joints[j], model.names[j]
         kind = joint.shortname()
-        if name == "root_joint" and base in _BASE_DOFS:
-            units = [unit for _, unit in _BASE_DOFS[base]]
+        if name == "root_joint" and base in BASE_COORDINATES:
+            units = [unit for _, unit in BASE_COORDINATES[base]]
         elif "Prismatic" in kind or kind[:11] == "JointModelP" or "Translation" in kind:
             units = ["m"] * joint.nv
         elif ("Revolute" in kind or kind[:11] == "JointModelR" or "SphericalZYX" in kind):
@@ -555,7 +549,7 @@ def describe_robot(robot_spec: Any, cls: Any) -> dict[str, Any]:
     gains = np.column_stack([np.asarray(forces(q0, v0, e), dtype=float).ravel() - at_rest
                              for e in np.eye(cls.n_u)]) if cls.n_u else np.zeros((cls.n_q, 0))
     axes = {"x": 0, "y": 1, "z": 2}
-    translations = [(i, axes[name]) for i, (name, _) in enumerate(_BASE_DOFS[spec.base])
+    translations = [(i, axes[name]) for i, (name, _) in enumerate(BASE_COORDINATES[spec.base])
                     if name in axes]
     if translations:
         mass = np.asarray(cls.function("mass")(q0), dtype=float)
