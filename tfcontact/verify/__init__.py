@@ -21,6 +21,10 @@ Parts, usable on their own (e.g. by the exact re-solve `tfcontact.ocp.polish`):
   open-loop end-state deviation, the local defects per control interval, the open-loop
   amplification and the end-state check built on them.
 * `Verification` (`tfcontact.verify.result`): the outcome of the checks of one plan.
+* the full collision model along a plan (`tfcontact.verify.collision`): every URDF
+  collision body against the terrain (`Obstacle`s) and against the robot's other bodies,
+  `check_collisions` / `check_robot_collisions` -> `CollisionReport`; optional, not part
+  of `Verification`.
 
 Layering: data flow robot -> timefreezing -> fesd -> mpcc -> ocp. `tfcontact.verify` sits
 beside `tfcontact.ocp`: it imports the time-freezing layer (the CLS, physical time), the
@@ -37,6 +41,17 @@ from tfcontact.verify.checks import (
     friction_cone_violation,
     maximal_dissipation_violation,
     painleve_note,
+)
+from tfcontact.verify.collision import (
+    CollisionOptions,
+    CollisionReport,
+    CollisionStatus,
+    Obstacle,
+    box_obstacle,
+    check_collisions,
+    check_robot_collisions,
+    ground_obstacle,
+    halfspace_obstacle,
 )
 from tfcontact.verify.methods import (
     AutoReplay,
@@ -74,8 +89,12 @@ __all__ = [
     "SENSITIVITY_KICK",
     "SLIP_THRESHOLD",
     "AutoReplay",
+    "CollisionOptions",
+    "CollisionReport",
+    "CollisionStatus",
     "ExactReplay",
     "FesdReplay",
+    "Obstacle",
     "ReferenceImpact",
     "ReferenceSimulation",
     "Replay",
@@ -85,6 +104,9 @@ __all__ = [
     "TimeFreezingPlan",
     "Verification",
     "VerifyOptions",
+    "box_obstacle",
+    "check_collisions",
+    "check_robot_collisions",
     "check_time_freezing_plan",
     "clock_checks",
     "collocation_impulses",
@@ -92,6 +114,8 @@ __all__ = [
     "defect_segments",
     "end_state_check",
     "friction_cone_violation",
+    "ground_obstacle",
+    "halfspace_obstacle",
     "local_defects",
     "maximal_dissipation_violation",
     "open_loop_sensitivity",
