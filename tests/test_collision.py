@@ -377,3 +377,41 @@ def test_report_to_dict_is_plain(leg):
     data = json.loads(json.dumps(report.to_dict()))
     assert data["status"] == "clear" and data["passed"]
     assert {b["body"] for b in data["bodies"]} == {"knee_0", "foot_0"}
+
+
+# ----------------------------------------------------------------------------- meshes, order
+
+
+def _cube_obj(path, half):
+    corners = [(x, y, z) for x in (-half, half) for y in (-half, half) for z in (-half, half)]
+    faces = [(1, 3, 4), (1, 4, 2), (5, 6, 8), (5, 8, 7), (1, 2, 6), (1, 6, 5),
+             (3, 7, 8), (3, 8, 4), (1, 5, 7), (1, 7, 3), (2, 4, 8), (2, 8, 6)]
+    path.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in corners)
+                    + "".join(f"f {a} {b} {c}\n" for a, b, c in faces))
+
+
+def test_a_mesh_body_is_checked_as_its_hull_with_signed_depths(tmp_path):
+    # A cube mesh (side 0.1) on the slider: d = z - 0.05, also when sunk 7 cm deep.
+    _cube_obj(tmp_path / "cube.obj", 0.05)
+    body = (_link("carriage") + _joint("lift", "prismatic", "carriage", "block")
+            + _link("block", f'<mesh filename="{tmp_path / "cube.obj"}"/>'))
+    robot = load_robot(_urdf(tmp_path, "mesh_slider", body))
+    assert isinstance(robot.collision_model.geometryObjects[0].geometry, coal.BVHModelBase)
+    heights = np.array([0.3, 0.06, 0.05, 0.0, -0.02])
+    report = check_robot_collisions(robot, np.arange(5.0), heights[:, None],
+                                    [halfspace_obstacle()])
+    np.testing.assert_allclose(report.terrain_distance[:, 0], heights - 0.05, atol=1e-9)
+    assert "1 mesh bodies checked as their convex hulls: their distances are lower bounds" \
+        in report.notes
+
+
+def test_distances_do_not_depend_on_the_order_of_the_samples(tilting_box):
+    # Deep penetrations of a tilted box into a step (EPA), forwards and backwards.
+    step = box_obstacle("step", (0.3, 0.3, 0.2), center=(0.05, 0.0, 0.0))
+    z = np.linspace(0.3, -0.1, 9)
+    q = np.column_stack([z, np.linspace(0.0, 1.2, 9)])
+    forwards = check_robot_collisions(tilting_box, np.arange(9.0), q, [step])
+    backwards = check_robot_collisions(tilting_box, np.arange(9.0), q[::-1], [step])
+    np.testing.assert_allclose(backwards.terrain_distance[::-1], forwards.terrain_distance,
+                               atol=1e-9)
+    assert forwards.terrain_distance.min() < -0.1

@@ -165,6 +165,11 @@ class CollisionOptions:
         substeps: configurations checked per sample interval (1: the samples only; k: k - 1
             more, interpolated on the manifold), to catch a body passing through a thin
             obstacle between samples.
+        meshes_as_convex: check a mesh body (a coal BVH, e.g. an STL) as the convex hull
+            of its vertices. coal's distance of a mesh is not signed (a mesh sunk into the
+            ground measures a wrong depth, and mesh-mesh distances cost about 100 times
+            more); the hull's are (GJK/EPA), at the price of a shape that contains the mesh:
+            its distances are lower bounds of the mesh's.
 
     Raises:
         InvalidInput: a tolerance that is not a non-negative finite number, a flag that is
@@ -179,6 +184,7 @@ class CollisionOptions:
     ignore_bodies: tuple[str, ...] = ()
     ignore_pairs: tuple[tuple[str, str], ...] = ()
     substeps: int = 1
+    meshes_as_convex: bool = True
 
     def __post_init__(self) -> None:
         for name in ("tolerance", "touch_distance"):
@@ -187,7 +193,7 @@ class CollisionOptions:
                     or not (math.isfinite(value) and value >= 0.0):
                 raise InvalidInput(f"`{name}` must be a non-negative number [m], got {value!r}")
             object.__setattr__(self, name, float(value))
-        for name in ("self_collision", "skip_adjacent"):
+        for name in ("self_collision", "skip_adjacent", "meshes_as_convex"):
             if not isinstance(getattr(self, name), bool):
                 raise InvalidInput(f"`{name}` must be True or False, got {getattr(self, name)!r}")
         if isinstance(self.ignore_bodies, str):
@@ -436,8 +442,7 @@ def check_collisions(
                   for i in bodies}
 
     # One geometry model holding the robot's bodies and the obstacles (on the universe).
-    work = collision_model.copy()
-    work.removeAllCollisionPairs()
+    work, meshes = _working_model(geoms, options.meshes_as_convex)
     obstacle_ids = [work.addGeometryObject(pin.GeometryObject(
         f"obstacle:{o.name}", 0, 0, o.placement, o.geometry)) for o in obstacles]
     terrain_pairs = [(b, k) for b in bodies for k in range(len(obstacles))]
@@ -450,8 +455,12 @@ def check_collisions(
     times, configs = _substeps(model, times, configs, options.substeps)
     n_terrain = len(terrain_pairs)
     distances = np.empty((times.size, len(work.collisionPairs)))
-    data, geom_data = model.createData(), work.createData()
+    data = model.createData()
     for k, qk in enumerate(configs):
+        # A fresh GeometryData per configuration: Pinocchio's requests warm-start GJK from
+        # the last call, and EPA's penetration depths then depend on the order of the
+        # samples (measured on solo12's base in a step: -11 mm instead of -24 mm).
+        geom_data = work.createData()
         pin.computeDistances(model, data, work, geom_data, qk)
         distances[k] = [r.min_distance for r in geom_data.distanceResults]
     per_obstacle = distances[:, :n_terrain].reshape(times.size, len(bodies), len(obstacles))
@@ -498,6 +507,9 @@ def check_collisions(
         notes.append("the collision model has no bodies: nothing checked")
     if not obstacles:
         notes.append("no obstacles: the terrain was not checked")
+    if meshes:
+        notes.append(f"{len(meshes)} mesh bodies checked as their convex hulls: their "
+                     "distances are lower bounds")
     if options.substeps == 1:
         notes.append("checked at the samples only (a body may pass through a thin obstacle "
                      "between two samples: CollisionOptions(substeps=k))")
@@ -523,6 +535,22 @@ def _check_samples(t: Any, q: Any, nq: int) -> tuple[np.ndarray, np.ndarray]:
         raise InvalidInput(f"`t` must be non-decreasing, got t[{k}] = {times[k]} > "
                            f"t[{k + 1}] = {times[k + 1]}")
     return times, configs
+
+
+def _working_model(geoms: list, meshes_as_convex: bool) -> tuple[pin.GeometryModel, list[str]]:
+    """A new geometry model of the bodies (same indices), meshes replaced by their convex
+    hulls if asked; the robot's own model and shapes are left untouched."""
+    work, meshes = pin.GeometryModel(), []
+    for g in geoms:
+        shape = g.geometry
+        if meshes_as_convex and isinstance(shape, coal.BVHModelBase):
+            shape = shape.clone()
+            shape.buildConvexRepresentation(False)
+            shape = shape.convex
+            meshes.append(g.name)
+        work.addGeometryObject(pin.GeometryObject(g.name, g.parentJoint, g.parentFrame,
+                                                  g.placement, shape))
+    return work, meshes
 
 
 def _same_place(model: pin.Model, frame_a: int, frame_b: int) -> bool:
