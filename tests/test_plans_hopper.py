@@ -27,7 +27,7 @@ def sidecar_end_x(out):
 def test_plan_command_writes_every_file_and_an_honest_status(hopper_plan):
     code, out = hopper_plan
     for name in ("trajectory.npz", "trajectory.json", "replay.html", "summary.json",
-                 "states.png", "clock.png", "contacts.png", "homotopy.png"):
+                 "states.png", "clock.png", "contacts.png", "homotopy.png", "collisions.png"):
         assert (out / name).is_file() and (out / name).stat().st_size > 0, name
     sidecar = json.loads((out / "trajectory.json").read_text())
     summary = json.loads((out / "summary.json").read_text())
@@ -50,6 +50,15 @@ def test_plan_command_writes_every_file_and_an_honest_status(hopper_plan):
     assert 1 <= len(attempts) <= 3
     assert attempts[-1]["status"] == sidecar["status"]
     assert all(a["status"] != "converged" for a in attempts[:-1])
+    # The URDF's full collision model (base box, foot sphere) along the plan against the
+    # ground: clear, the foot (the declared contact) touching it, the base well above.
+    collisions = summary["collisions"]
+    assert collisions["passed"] and collisions["status"] == "clear", collisions["worst"]
+    bodies = {b["body"]: b for b in collisions["bodies"]}
+    assert {name: b["contact"] for name, b in bodies.items()} == {"base_0": False,
+                                                                  "foot_0": True}
+    physical = load_trajectory(out / "trajectory.npz").physical()
+    assert bodies["foot_0"]["min_distance"] == pytest.approx(physical.gap[:, 0].min(), abs=1e-9)
 
 
 def test_hopper_discovers_flight_phases_and_reaches_the_goal(hopper_plan):

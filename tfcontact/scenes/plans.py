@@ -231,11 +231,28 @@ def _write_outcome(name: str, task: str, out: Path, start: float,
     if outcome.trajectory is not None:
         npz, sidecar = save_trajectory(out / "trajectory.npz", outcome.trajectory)
         figures = plot_trajectory(outcome.trajectory, out)
+        collisions, collision_files = _collisions(outcome, out)
         page = replay(outcome.trajectory, html=out / "replay.html", robot=outcome.robot)
-        files += [npz, sidecar, *figures, page.html]
+        files += [npz, sidecar, *figures, *collision_files, page.html]
+    else:
+        collisions = None
     (out / "summary.json").write_text(json.dumps({
         "plan": name, "task": task, "status": outcome.status,
         "success": outcome.success, "wall_time": time.perf_counter() - start,
-        "task_checks": outcome.task, "summary": outcome.summary}, indent=2))
+        "task_checks": outcome.task, "summary": outcome.summary,
+        "collisions": collisions}, indent=2))
     files.append(out / "summary.json")
     return [Path(f) for f in files]
+
+
+def _collisions(outcome: PlanOutcome, out: Path) -> tuple[dict, list[Path]]:
+    """The URDF's full collision model along the plan against its scene's terrain
+    (`tfcontact.viz.collision_figure.trajectory_collisions`): reported in summary.json and
+    `collisions.png`, not part of the plan's success (yet)."""
+    from tfcontact.viz.collision_figure import save_collision_figure, trajectory_collisions
+
+    try:
+        report = trajectory_collisions(outcome.trajectory, robot=outcome.robot)
+    except InvalidInput as err:  # a scene terrain without an obstacle form
+        return {"checked": False, "reason": str(err)}, []
+    return report.to_dict(), [save_collision_figure(report, out / "collisions.png")]
