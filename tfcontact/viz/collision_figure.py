@@ -127,7 +127,7 @@ def collision_figure(report: CollisionReport) -> Figure:
                      transform=axes[0].transAxes)
     axes[-1].set_xlabel("t [s]")
     flag = "passed" if report.passed else "FAILED"
-    fig.suptitle("\n".join(textwrap.wrap(f"collisions {flag}: {report.worst}", 90)),
+    fig.suptitle("\n".join(textwrap.wrap(f"collisions {flag}: {report.worst}", 110)),
                  fontsize="small")
     return fig
 
