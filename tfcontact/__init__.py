@@ -37,6 +37,7 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "load_robot": ("tfcontact.robot", "load_robot"),
     "ContactSpec": ("tfcontact.robot", "ContactSpec"),
     "Ground": ("tfcontact.robot", "Ground"),
+    "Terrain": ("tfcontact.robot", "Terrain"),
     "contact_system": ("tfcontact.timefreezing.from_robot", "from_robot"),
     "time_freeze": ("tfcontact.timefreezing", "time_freeze"),
     "Inelastic": ("tfcontact.timefreezing", "Inelastic"),

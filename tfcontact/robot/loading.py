@@ -32,6 +32,7 @@ from tfcontact.errors import (
 )
 from tfcontact.robot.contact import ContactTerms, Ground, contact_terms
 from tfcontact.robot.spec import BASES, PLANAR_BASES, ContactSpec, RobotSpec
+from tfcontact.robot.terrain import Terrain
 from tfcontact.robot.twin import RobotTwin
 
 #: The repository root (relative URDF paths are tried against the cwd, then here).
@@ -121,11 +122,12 @@ class Robot:
         """The neutral configuration `pin.neutral(model)` (all zeros here)."""
         return pin.neutral(self.model)
 
-    def contact_terms(self, ground: Ground | None = None) -> list[ContactTerms]:
+    def contact_terms(self, ground: Ground | Terrain | None = None) -> list[ContactTerms]:
         """Gap, normal, tangents and drift of every contact candidate against `ground`.
 
         Args:
-            ground: the half-space; default `Ground()` (z-up plane at height 0).
+            ground: the half-space, or a `Terrain` of primitives; default `Ground()`
+                (z-up plane at height 0).
 
         Returns:
             One `ContactTerms` per entry of `contacts`, in order, as SX expressions in

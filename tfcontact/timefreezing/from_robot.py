@@ -1,7 +1,9 @@
 """A CLS from a loaded robot (`tfcontact.robot`): a thin adapter.
 
 q, v and M(q), h(q, v) come from the robot's CasADi twin; each contact candidate's gap,
-normal n(q) = J^T n_w and tangents B(q) = J^T T come from `Robot.contact_terms(ground)`.
+normal n(q) = J^T n_w and tangents B(q) = J^T T come from `Robot.contact_terms(ground)`,
+against a `Ground` half-space or a `Terrain` of primitives (then n_w and T follow the
+terrain's local normal).
 The controls are the generalised forces of the actuated joints:
 f_v = S^T u - h(q, v), with S selecting the velocity entries of the actuated joints.
 """
@@ -25,18 +27,21 @@ def from_robot(
     robot: Any,
     ground: Any = None,
     *,
-    mu: float = 0.0,
+    mu: float | Sequence[float] | None = None,
     restitution: float = 0.0,
     a_n: float = 100.0,
     eps_t: float = 1e-7,
     actuated: Sequence[str] | None = None,
 ) -> ComplementarityLagrangianSystem:
-    """The CLS of a `tfcontact.robot.Robot` against a ground half-space.
+    """The CLS of a `tfcontact.robot.Robot` against a ground half-space or a terrain.
 
     Main arguments:
         robot: a loaded robot (`tfcontact.robot.load_robot(..., contacts=...)`).
-        ground: a `tfcontact.robot.Ground`; default flat ground at height 0.
-        mu: Coulomb coefficient of every contact [-] (0: frictionless, no tangents).
+        ground: a `tfcontact.robot.Ground` or `tfcontact.robot.Terrain`; default flat
+            ground at height 0.
+        mu: Coulomb coefficient [-] of every contact (a number) or of each contact in
+            order (a sequence); None: the terrain's `Terrain.friction` (its surfaces must
+            agree), or 0 for a Ground (which carries none). 0: frictionless, no tangents.
 
     Other arguments:
         restitution, a_n, eps_t: as in `Contact`, for every contact.
@@ -47,16 +52,22 @@ def from_robot(
         A `ComplementarityLagrangianSystem` in the twin's symbols q, v and new controls u.
 
     Raises:
-        InvalidInput: the robot has no contact candidates, or an unknown actuated joint.
+        InvalidInput: the robot has no contact candidates, an unknown actuated joint, or
+            a sequence `mu` of the wrong length.
+        IncompatibleOptions: `mu` = None with a terrain whose surfaces differ in friction.
     """
-    from tfcontact.robot import Ground
+    from tfcontact.robot import Ground, Terrain
 
-    terms = robot.contact_terms(Ground() if ground is None else ground)
+    ground = Ground() if ground is None else ground
+    terms = robot.contact_terms(ground)
     if not terms:
         raise InvalidInput(
             "the robot has no contact candidates: load it with "
             "`contacts=(ContactSpec(frame, radius), ...)`"
         )
+    if mu is None:
+        mu = ground.friction if isinstance(ground, Terrain) else 0.0
+    mus = _coefficients(mu, [t.frame for t in terms])
     model = robot.model
     names = list(model.names[1:])
     chosen = [n for n in names if n != BASE_JOINT] if actuated is None else list(actuated)
@@ -73,9 +84,9 @@ def from_robot(
     u = ca.SX.sym("u", len(columns))
     forces = ca.mtimes(ca.DM(selection), u) - twin.h
     contacts = tuple(
-        Contact(gap=t.gap, normal=t.normal, tangents=t.tangents if mu > 0 else None, mu=mu,
+        Contact(gap=t.gap, normal=t.normal, tangents=t.tangents if m > 0 else None, mu=m,
                 restitution=restitution, a_n=a_n, eps_t=eps_t, name=t.frame)
-        for t in terms
+        for t, m in zip(terms, mus, strict=True)
     )
     v_names = []
     for name in names:
@@ -86,6 +97,23 @@ def from_robot(
         q_names=tuple(f"q_{n}" for n in v_names), v_names=tuple(f"v_{n}" for n in v_names),
         control_names=tuple(f"u_{names_of(model, c)}" for c in columns),
     )
+
+
+def _coefficients(mu: Any, frames: list[str]) -> list[float]:
+    """One Coulomb coefficient per contact (their range is checked by `Contact`)."""
+    if isinstance(mu, Sequence | np.ndarray) and not isinstance(mu, str):
+        values = list(np.ravel(mu)) if isinstance(mu, np.ndarray) else list(mu)
+        if len(values) != len(frames):
+            raise InvalidInput(
+                f"`mu` has {len(values)} coefficients but the robot has {len(frames)} "
+                f"contacts {frames}; give one per contact, in order, or a single number"
+            )
+    else:
+        values = [mu] * len(frames)
+    for value in values:
+        if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+            raise InvalidInput(f"`mu` must be a number or one number per contact, got {mu!r}")
+    return [float(v) for v in values]
 
 
 def names_of(model: Any, v_index: int) -> str:
