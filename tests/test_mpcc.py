@@ -113,6 +113,33 @@ def test_a_stepping_stone_that_meets_the_tolerance_is_solved_again_to_tol():
     np.testing.assert_allclose(result.w, [1.0, 0.0], atol=1e-8)
 
 
+def test_warm_start_push_starts_later_nlps_from_the_last_multipliers():
+    homotopy = Homotopy(tolerance=1e-6)
+    cold = solve(corner_mpcc(), homotopy=homotopy)
+    warm = solve(corner_mpcc(), homotopy=homotopy, nlp=Ipopt(warm_start_push=1e-9))
+    assert warm.status is MpccStatus.CONVERGED
+    np.testing.assert_allclose(warm.w, cold.w, atol=1e-5)
+    assert [s.warm_started for s in warm.history] == [False] + [True] * (warm.n_nlps - 1)
+    assert not any(s.warm_started for s in cold.history)
+    # IPOPT got the multipliers: the last NLPs start next to their solutions (measured:
+    # 3 iterations each instead of 6)
+    assert sum(warm.iterations[-3:]) < sum(cold.iterations[-3:])
+    options = Ipopt(warm_start_push=1e-9).casadi_options(warm=True)["ipopt"]
+    assert options["warm_start_init_point"] == "yes"
+    assert options["warm_start_bound_push"] == options["warm_start_mult_bound_push"] == 1e-9
+    assert "warm_start_init_point" not in Ipopt(warm_start_push=1e-9).casadi_options()["ipopt"]
+
+
+def test_warm_start_push_with_intermediate_tol():
+    # four IPOPT instances: (stepping stone or not) x (warm started or not)
+    result = solve(corner_mpcc(), homotopy=Homotopy(tolerance=1e-6),
+                   nlp=Ipopt(intermediate_tol=1e-2, warm_start_push=1e-9))
+    assert result.status is MpccStatus.CONVERGED
+    assert [(s.intermediate, s.warm_started) for s in result.history] == \
+        [(True, False)] + [(True, True)] * 5 + [(False, True)]
+    np.testing.assert_allclose(result.w, [1.0, 0.0], atol=1e-5)
+
+
 def test_infeasible_problem_is_reported_not_marked_successful():
     mpcc = corner_mpcc(extra_g=lambda w: w[0] + w[1] + 1.0)  # x + y = -1 with x, y >= 0
     result = solve(mpcc, throw=False, homotopy=Homotopy(max_nlps=2))
@@ -135,6 +162,13 @@ def test_bad_input_is_named():
         Ipopt(tol=1e-8, intermediate_tol=1e-9)
     with pytest.raises(InvalidInput, match="`intermediate_tol`"):
         Ipopt(intermediate_tol=float("nan"))
+    for bad in (0.0, 0.5, True, float("nan"), "1e-9"):
+        with pytest.raises(InvalidInput, match="`warm_start_push` must be a number in"):
+            Ipopt(warm_start_push=bad)
+    with pytest.raises(InvalidInput, match="`warm_start_bound_push` is set by"):
+        Ipopt(warm_start_push=1e-9, options={"warm_start_bound_push": 1e-3})
+    with pytest.raises(InvalidInput, match="no `warm_start_push`"):
+        Ipopt().casadi_options(warm=True)
     with pytest.raises(InvalidInput, match=r"`linear_solver` must be one of 'mumps', "
                                            r"'spral' .*got 'ma57'"):
         Ipopt(linear_solver="ma57")

@@ -115,6 +115,15 @@ class Ipopt:
             alternative to HSL's solvers, which the wheel lacks; about 5x slower per
             iteration on the monoped, with another homotopy path:
             benchmarks/monoped_settings.md, fifth session).
+        warm_start_push: if set, every NLP of the homotopy after the first starts from
+            the last NLP's primal-dual solution: its bound and constraint multipliers too,
+            not only its variables (IPOPT's `warm_start_init_point`), moved at least this
+            far into the interior (`warm_start_bound_push`, `warm_start_mult_bound_push`;
+            also `mu_init`). A relaxed NLP's multipliers change little from one sigma to
+            the next, and a cold start throws them away: the 2-D ball's w = 3 pi plan
+            took 62 + 89 instead of 133 + 196 iterations in its second and third NLP with
+            1e-9 (benchmarks/ball_in_box_speed.md). Off by default: the iterates, and with
+            round-off the local solution reached, change.
     """
 
     tol: float = 1e-10
@@ -125,6 +134,7 @@ class Ipopt:
     element_derivatives: bool = False
     threads: int = 1
     linear_solver: str = "mumps"
+    warm_start_push: float | None = None
 
     def __post_init__(self) -> None:
         if not self.tol > 0:
@@ -145,10 +155,23 @@ class Ipopt:
         if isinstance(self.threads, bool) or not isinstance(self.threads, int) \
                 or self.threads < 1:
             raise InvalidInput(f"`threads` must be a positive integer, got {self.threads!r}")
+        if self.warm_start_push is not None:
+            if not (isinstance(self.warm_start_push, (int, float))
+                    and not isinstance(self.warm_start_push, bool)
+                    and 0 < self.warm_start_push < 0.5):
+                raise InvalidInput(f"`warm_start_push` must be a number in (0, 0.5), or None; "
+                                   f"got {self.warm_start_push!r}")
+            for key in ("warm_start_init_point", "warm_start_bound_push",
+                        "warm_start_mult_bound_push"):
+                if key in self.options:
+                    raise InvalidInput(f"`{key}` is set by `warm_start_push`; give it there, "
+                                       f"not in `options`")
 
-    def casadi_options(self, intermediate: bool = False) -> dict[str, Any]:
+    def casadi_options(self, intermediate: bool = False,
+                       warm: bool = False) -> dict[str, Any]:
         """CasADi's nlpsol options; `intermediate`: those of the homotopy's stepping-stone
-        NLPs (`intermediate_tol`)."""
+        NLPs (`intermediate_tol`); `warm`: those of an NLP warm started from the last
+        one's primal-dual solution (`warm_start_push`)."""
         ipopt = {
             "tol": self.tol,
             "max_iter": self.max_iter,
@@ -168,12 +191,26 @@ class Ipopt:
             loose = self.intermediate_tol
             ipopt.update(tol=loose, constr_viol_tol=loose, compl_inf_tol=loose,
                          acceptable_tol=max(loose, float(ipopt["acceptable_tol"])))
+        if warm:
+            if self.warm_start_push is None:
+                raise InvalidInput("this Ipopt has no `warm_start_push`")
+            push = float(self.warm_start_push)
+            ipopt.update(warm_start_init_point="yes", warm_start_bound_push=push,
+                         warm_start_mult_bound_push=push, mu_init=push)
         # IPOPT's own f, g and multipliers are kept: CasADi's recomputation of them after
         # the solve needs the gradient of the Lagrangian ("nlp_grad"), whose symbolic
         # build took 0.2 s of each solver's 0.25 s on the hopper; nothing here reads lam_p.
         return {"ipopt": ipopt, "print_time": False, "error_on_fail": False,
                 "no_nlp_grad": True, "calc_f": False, "calc_g": False,
                 "calc_lam_x": False, "calc_lam_p": False}
+
+
+@dataclass(frozen=True)
+class Multipliers:
+    """IPOPT's multipliers of an NLP's variable bounds (x) and constraints (g)."""
+
+    x: np.ndarray
+    g: np.ndarray
 
 
 class MpccStatus(enum.Enum):
@@ -197,7 +234,8 @@ class HomotopyStep:
     is IPOPT's own work, mostly the KKT factorisations. `intermediate`: a stepping stone,
     solved to `Ipopt.intermediate_tol` only. `refined`: an NLP whose sigma lies off the
     schedule, warm started from the last solved NLP after a failure
-    (`Homotopy.max_refinements`)."""
+    (`Homotopy.max_refinements`). `warm_started`: started from the last NLP's multipliers
+    too (`Ipopt.warm_start_push`)."""
 
     sigma: float
     iterations: int
@@ -208,6 +246,7 @@ class HomotopyStep:
     evaluation_seconds: float = 0.0
     intermediate: bool = False
     refined: bool = False
+    warm_started: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -319,18 +358,27 @@ class MpccSolver:
                 nlp_dict["x"], nlp_dict["p"], nlp_dict["f"], nlp_dict["g"], mpcc.repeated,
                 threads=self.nlp.threads))
         self._solver = ca.nlpsol("mpcc", "ipopt", nlp_dict, options)
-        self._intermediate_solver = None
-        if self.nlp.intermediate_tol is not None:
-            # The same NLP with looser stopping tests; it reuses the first solver's
-            # derivative functions, so it costs no second symbolic differentiation.
-            options = self.nlp.casadi_options(intermediate=True)
-            options["iteration_callback"] = self._stop_on_signal
-            for option, name in (("hess_lag", "nlp_hess_l"), ("jac_g", "nlp_jac_g"),
-                                 ("grad_f", "nlp_grad_f")):
-                if self._solver.has_function(name):  # no Hessian with a quasi-Newton one
-                    options[option] = self._solver.get_function(name)
-            self._intermediate_solver = ca.nlpsol("mpcc_intermediate", "ipopt", nlp_dict,
-                                                  options)
+        # The same NLP with looser stopping tests (stepping stones, `intermediate_tol`)
+        # and/or warm started from multipliers (`warm_start_push`), by (intermediate,
+        # warm); they reuse the first solver's derivative functions, so they cost no
+        # second symbolic differentiation.
+        self._solvers = {(False, False): self._solver}
+        for intermediate in ((False, True) if self.nlp.intermediate_tol is not None
+                             else (False,)):
+            for warm in ((False, True) if self.nlp.warm_start_push is not None
+                         else (False,)):
+                if (intermediate, warm) == (False, False):
+                    continue
+                options = self.nlp.casadi_options(intermediate=intermediate, warm=warm)
+                options["iteration_callback"] = self._stop_on_signal
+                for option, name in (("hess_lag", "nlp_hess_l"), ("jac_g", "nlp_jac_g"),
+                                     ("grad_f", "nlp_grad_f")):
+                    if self._solver.has_function(name):  # no Hessian with a quasi-Newton one
+                        options[option] = self._solver.get_function(name)
+                suffix = "_intermediate" * intermediate + "_warm" * warm
+                self._solvers[intermediate, warm] = ca.nlpsol(f"mpcc{suffix}", "ipopt",
+                                                              nlp_dict, options)
+        self._intermediate_solver = self._solvers.get((True, False))
         self._diagnostics = ca.Function(
             "mpcc_diagnostics", [mpcc.w, mpcc.p], [products, mpcc.g, mpcc.f]
         )
@@ -370,29 +418,36 @@ class MpccSolver:
                      float(np.max(w - self.mpcc.ubw, initial=0.0)))
         return residual, max(violation, bounds), float(f)
 
-    def _solve_nlp(self, x: np.ndarray, lam_g: np.ndarray | None, p: np.ndarray,
+    def _solve_nlp(self, x: np.ndarray, lam: Multipliers | None, p: np.ndarray,
                    sigma: float, intermediate: bool
-                   ) -> tuple[np.ndarray, np.ndarray | None, HomotopyStep, float]:
-        """One relaxed NLP from x: the new iterate (x kept if IPOPT returned non-finite
-        values), its constraint multipliers, the step's record and the MPCC's constraint
-        violation there."""
-        solver = self._intermediate_solver if intermediate else self._solver
+                   ) -> tuple[np.ndarray, Multipliers | None, HomotopyStep, float]:
+        """One relaxed NLP from x (and from the multipliers `lam` with `warm_start_push`):
+        the new iterate (x and lam kept if IPOPT returned non-finite values), its
+        multipliers, the step's record and the MPCC's constraint violation there."""
+        warm = self.nlp.warm_start_push is not None and lam is not None
+        solver = self._solvers[intermediate, warm]
+        args = {"x0": x, "p": np.concatenate([p, [sigma]]), "lbx": self._lbx,
+                "ubx": self._ubx, "lbg": self._lbg, "ubg": self._ubg}
+        if warm:
+            args.update(lam_x0=lam.x, lam_g0=lam.g)
         start = time.perf_counter()
         with interrupt.guard():  # Ctrl-C stops IPOPT and the homotopy (tfcontact.interrupt)
-            sol = solver(x0=x, p=np.concatenate([p, [sigma]]), lbx=self._lbx, ubx=self._ubx,
-                         lbg=self._lbg, ubg=self._ubg)
+            sol = solver(**args)
         seconds = time.perf_counter() - start
         stats = solver.stats()
         x_new = np.asarray(sol["x"]).reshape(-1)
+        lam_new = Multipliers(np.asarray(sol["lam_x"]).reshape(-1),
+                              np.asarray(sol["lam_g"]).reshape(-1))
         if np.all(np.isfinite(x_new)):
             x = x_new
-            lam_g = np.asarray(sol["lam_g"]).reshape(-1)
+            if np.all(np.isfinite(lam_new.x)) and np.all(np.isfinite(lam_new.g)):
+                lam = lam_new
         residual, violation, objective = self.diagnostics(x[: self._n_w], p)
         evaluations = sum(float(v) for key, v in stats.items() if key.startswith("t_wall_nlp_"))
         step = HomotopyStep(sigma, int(stats.get("iter_count", 0)), objective, residual,
                             seconds, str(stats.get("return_status", "unknown")), evaluations,
-                            intermediate)
-        return x, lam_g, step, violation
+                            intermediate, warm_started=warm)
+        return x, lam, step, violation
 
     def solve(self, p: np.ndarray | None = None, w0: np.ndarray | None = None, *,
               homotopy: Homotopy | None = None, verbose: bool = False,
@@ -417,14 +472,14 @@ class MpccSolver:
         sigma = homotopy.sigma_0
         status = MpccStatus.NOT_CONVERGED
         residual = violation = objective = math.inf
-        lam_g = None
+        lam: Multipliers | None = None
         if verbose:
             print(f"  {'NLP':>3} {'sigma':>9} {'iter':>5} {'objective':>12} "
                   f"{'residual':>9} {'time[s]':>8}  IPOPT", file=sys.stdout, flush=True)
         # The last NLP that IPOPT solved: if the homotopy ends on a failed NLP, the result
         # reports that iterate rather than the failed one.
         solved_x: np.ndarray | None = None
-        solved_lam: np.ndarray | None = None
+        solved_lam: Multipliers | None = None
         solved_sigma = math.inf
         target = sigma  # the schedule's sigma_k; `sigma` lies above it after a refinement
         k = refinements = 0
@@ -435,7 +490,7 @@ class MpccSolver:
             stepping_stone = (self._intermediate_solver is not None
                               and sigma > homotopy.tolerance * (1 + 1e-9))
             for intermediate in ((True, False) if stepping_stone else (False,)):
-                x, lam_g, step, violation = self._solve_nlp(x, lam_g, p, sigma, intermediate)
+                x, lam, step, violation = self._solve_nlp(x, lam, p, sigma, intermediate)
                 step = dataclasses.replace(step, refined=refined)
                 history.append(step)
                 residual, objective = step.residual, step.objective
@@ -450,7 +505,7 @@ class MpccSolver:
                     break
             if solved:
                 status = MpccStatus.NOT_CONVERGED
-                solved_x, solved_lam, solved_sigma = x.copy(), lam_g, sigma
+                solved_x, solved_lam, solved_sigma = x.copy(), lam, sigma
                 if residual <= homotopy.tolerance and not intermediate:
                     status = MpccStatus.CONVERGED
                     break
@@ -463,7 +518,7 @@ class MpccSolver:
             if refinements < homotopy.max_refinements and solved_x is not None:
                 # Cut the step: from the last solved NLP to the geometric midpoint.
                 refinements += 1
-                x, lam_g = solved_x.copy(), solved_lam
+                x, lam = solved_x.copy(), solved_lam
                 sigma = math.sqrt(solved_sigma * sigma)
                 continue
             # A failed relaxed NLP early in the homotopy often recovers with a smaller
@@ -473,7 +528,7 @@ class MpccSolver:
             target *= homotopy.kappa
             sigma = target
         if status is MpccStatus.NLP_FAILED and solved_x is not None:
-            x, lam_g = solved_x, solved_lam
+            x, lam = solved_x, solved_lam
             residual, violation, objective = self.diagnostics(x[: self._n_w], p)
         if status is MpccStatus.CONVERGED and violation > feasibility_tol:
             status = MpccStatus.NLP_FAILED
@@ -481,7 +536,7 @@ class MpccSolver:
             status=status, w=x[: self._n_w].copy(), objective=objective, residual=residual,
             constraint_violation=violation, history=tuple(history),
             build_time=self.build_time, blocks=dict(self.mpcc.blocks),
-            relaxation=self.relaxation.name, lam_g=lam_g,
+            relaxation=self.relaxation.name, lam_g=None if lam is None else lam.g,
         )
 
 
