@@ -59,14 +59,18 @@ def _positive(kind: type, name: str):
 
 
 def _plan(args: argparse.Namespace) -> int:
-    from tfcontact.scenes import PLANS, run_plan
+    from tfcontact.scenes import PLANS, run_plan, task_plan
+    from tfcontact.task import shipped_tasks
 
     if args.list or args.name is None:
         print("Available plans:")
         for name, plan in PLANS.items():
-            print(f"  {name:12s} {plan.summary}")
+            print(f"  {name:16s} {plan.summary}")
+        print("Shipped task files (tfcontact plan NAME, or any PATH.toml of your own):")
+        for name in shipped_tasks():
+            print(f"  {name:16s} {task_plan(name).summary}")
         return EXIT_OK if args.list else EXIT_USAGE
-    out = Path(args.out) if args.out else Path("out") / args.name
+    out = Path(args.out) if args.out else Path("out") / Path(args.name).stem
     report = run_plan(args.name, out, task=args.task, attempts=args.attempts,
                       verbose=not args.quiet, force=args.force)
     if not report.success:
@@ -105,7 +109,8 @@ def main(argv: list[str] | None = None) -> int:
                "written to a staging folder beside it and moved into place at once. Ctrl-C "
                "stops the solve within an IPOPT iteration and leaves the folder untouched.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    plan.add_argument("name", nargs="?", help="the plan to solve (see --list)")
+    plan.add_argument("name", nargs="?",
+                      help="the plan to solve (see --list), or a task file PATH.toml")
     plan.add_argument("--list", action="store_true", help="list the available plans")
     plan.add_argument("--out", help="output folder (default out/NAME)")
     plan.add_argument("--force", action="store_true",

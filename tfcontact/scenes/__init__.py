@@ -3,6 +3,14 @@
 `PLANS` lists the robot plans of `tfcontact plan`; `run_plan` runs one.
 """
 
-from tfcontact.scenes.plans import PLANS, Plan, PlanReport, PlanSetup, run_plan
+from tfcontact.scenes.plans import (
+    PLANS,
+    Plan,
+    PlanReport,
+    PlanSetup,
+    plan_named,
+    run_plan,
+    task_plan,
+)
 
-__all__ = ["PLANS", "Plan", "PlanReport", "PlanSetup", "run_plan"]
+__all__ = ["PLANS", "Plan", "PlanReport", "PlanSetup", "plan_named", "run_plan", "task_plan"]

@@ -287,25 +287,17 @@ def hopper_options(task: HopperTask | str = "short"):
     failed), so the long task keeps one attempt; so does the bench task, so that its
     times compare single solves.
     """
-    from tfcontact.fesd import Fesd, RadauIIA
-    from tfcontact.mpcc import Homotopy, Ipopt, Scholtes
-    from tfcontact.ocp.contact import ContactSolverOptions
+    import dataclasses
+
+    from tfcontact.task.presets import default_preset, fast_preset
 
     name = task.name if isinstance(task, HopperTask) else task
-    # the bench task: IPOPT's adaptive barrier (the `Ipopt` default), see above
-    ipopt = {} if name == "bench" else {"mu_strategy": "monotone"}
-    n_finite_elements = 3
-    tolerance, sigma_0 = (1e-3, 0.1) if name == "bench" else (1e-4, 1.0)
+    if name == "bench":
+        return fast_preset()
+    options = default_preset()
     if name == "long":
-        ipopt["mumps_pivtol"] = 1e-4
-        n_finite_elements = 4
-    return ContactSolverOptions(
-        scheme=RadauIIA(2), n_finite_elements=n_finite_elements, method=Fesd(gamma_h=0.9),
-        relaxation=Scholtes(),
-        homotopy=Homotopy(sigma_0=sigma_0, kappa=0.1, tolerance=tolerance, max_nlps=6,
-                          max_refinements=0 if name == "bench" else 3),
-        nlp=Ipopt(tol=1e-8, max_iter=1000, options=ipopt,
-                  intermediate_tol=1e-1 if name == "bench" else None,
-                  element_derivatives=True, threads=2),
-        attempts=3 if name == "short" else 1,
-    )
+        return dataclasses.replace(
+            options, n_finite_elements=4, attempts=1,
+            nlp=dataclasses.replace(options.nlp, options={**options.nlp.options,
+                                                          "mumps_pivtol": 1e-4}))
+    return options

@@ -161,10 +161,43 @@ PLANS: dict[str, Plan] = {
 }
 
 
-def run_plan(name: str, out_dir: Path | str, *, task: str | None = None,
+def task_plan(source: str | Path) -> Plan:
+    """The `Plan` of a task file (`tfcontact.task`): a path to a TOML file, or the name of
+    a shipped task (`tfcontact.task.shipped_tasks()`).
+
+    Raises:
+        InvalidInput: no such task, or a bad field in it (named).
+    """
+    from tfcontact.task import build_task, load_task, shipped_tasks
+
+    shipped = shipped_tasks()
+    path = shipped.get(str(source), Path(source))
+    if not str(path).endswith(".toml"):
+        raise InvalidInput(f"unknown plan `{source}`; available: "
+                           f"{', '.join([*PLANS, *shipped])}, or a task file PATH.toml")
+    data = load_task(path)
+
+    def build(_: str | None) -> PlanSetup:
+        setup = build_task(data)
+        return PlanSetup(setup.robot, setup.problem, setup.options, setup.scene)
+
+    return Plan(name=data.name, summary=data.description or f"task file {path}",
+                build=build, tasks=("task",))
+
+
+def plan_named(name: str | Path) -> Plan:
+    """The plan `name`: one of `PLANS`, a shipped task or a task file's path."""
+    if isinstance(name, str) and name in PLANS:
+        return PLANS[name]
+    return task_plan(name)
+
+
+def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
              attempts: int | None = None, verbose: bool = True,
              force: bool = False) -> PlanReport:
     """Solve the plan `name`, verify it and write trajectory, figures and replay to out_dir.
+
+    `name`: a plan of `PLANS`, a shipped task's name or a task file's path (`task_plan`).
 
     `attempts` overrides the plan's number of solves (`ContactSolverOptions.attempts`).
     The arguments and the output folder are checked before any solving
@@ -177,9 +210,8 @@ def run_plan(name: str, out_dir: Path | str, *, task: str | None = None,
     from tfcontact.scenes.output import OutputFolder
     from tfcontact.viz.plan import trajectory_from_result
 
-    if name not in PLANS:
-        raise InvalidInput(f"unknown plan `{name}`; available: {', '.join(PLANS)}")
-    plan = PLANS[name]
+    plan = plan_named(name)
+    name = plan.name
     if task is not None and task not in plan.tasks:
         raise InvalidInput(f"plan `{name}` has no task `{task}`; tasks: {', '.join(plan.tasks)}")
     if attempts is not None:

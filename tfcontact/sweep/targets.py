@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tfcontact.errors import InvalidInput
-from tfcontact.scenes import PLANS, PlanSetup
+from tfcontact.scenes import PLANS, PlanSetup, plan_named
 from tfcontact.sweep.perturbation import (
     CoordinateRange,
     Perturbation,
@@ -171,7 +171,7 @@ class PlanTarget(SweepTarget):
         if params:
             raise InvalidInput(f"plan `{self.name}` has no problem-level grid keys, got "
                                f"{sorted(params)}")
-        return PLANS[self.name].build(task)
+        return plan_named(self.name).build(task)
 
 
 SWEEP_TARGETS: dict[str, SweepTarget] = {"hopper": HopperTarget(),
@@ -186,7 +186,12 @@ def sweep_target(plan: str) -> SweepTarget:
         return SWEEP_TARGETS[plan]
     sweepable = sorted({*SWEEP_TARGETS, *(n for n, p in PLANS.items() if p.build is not None)})
     if plan not in PLANS:
-        raise InvalidInput(f"unknown plan `{plan}`; sweepable plans: {', '.join(sweepable)}")
+        try:
+            found = plan_named(plan)  # a task file or a shipped task
+        except InvalidInput:
+            raise InvalidInput(f"unknown plan `{plan}`; sweepable plans: "
+                               f"{', '.join(sweepable)}, or a task file PATH.toml") from None
+        return PlanTarget(plan, found.tasks)
     if PLANS[plan].build is None:
         raise InvalidInput(f"plan `{plan}` solves itself in its own chain, with no single "
                            f"contact problem whose start a sweep could perturb; sweepable "

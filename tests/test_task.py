@@ -1,0 +1,259 @@
+"""Task files (`tfcontact.task`): validation naming the field, and the contact problem a
+task builds, checked against the URDF's own numbers and closed forms."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from tfcontact.errors import InvalidInput
+from tfcontact.task import (
+    SOLVER_PRESETS,
+    ContactEntry,
+    Task,
+    build_task,
+    load_task,
+    shipped_tasks,
+    task_from_dict,
+)
+
+# A robot the project has never seen: a 1 kg body on an x-z base with a prismatic leg
+# (0.1 kg foot) pushing down, its effort limit 40 N and stroke 0.1-0.5 m from the URDF.
+LEG_URDF = """<?xml version="1.0"?>
+<robot name="pogo">
+  <link name="body">
+    <inertial><mass value="1.0"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0"
+      iyz="0"/></inertial>
+    <collision><geometry><box size="0.2 0.1 0.1"/></geometry></collision>
+  </link>
+  <link name="shin">
+    <inertial><mass value="0.1"/><inertia ixx="0.001" iyy="0.001" izz="0.001" ixy="0"
+      ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="leg" type="prismatic">
+    <parent link="body"/><child link="shin"/>
+    <axis xyz="0 0 -1"/>
+    <limit lower="0.1" upper="0.5" effort="40" velocity="20"/>
+  </joint>
+  <link name="toe"/>
+  <joint name="toe_joint" type="fixed"><parent link="shin"/><child link="toe"/></joint>
+</robot>
+"""
+
+TASK_TOML = """
+name = "pogo-hop"
+description = "a pogo stick of the test's own: one vertical hop"
+horizon = 1.0
+n_intervals = 20
+[robot]
+source = "pogo.urdf"
+base = "planar_xz"
+[[contacts]]
+frame = "toe"
+radius = 0.02
+friction = 0.5
+no_slip = true
+[start]
+z = 0.32
+leg = 0.3
+[[waypoints]]
+t = 0.5
+z = 0.8
+[[waypoints]]
+t = 1.0
+z = 0.32
+leg = 0.3
+[goals]
+lift_offs = { toe = 1 }
+[costs]
+tracking = { x = 50, z = 500, v_x = 0.1, v_z = 0.1, v_leg = 0.1 }
+terminal = { x = 300, z = 300, leg = 300 }
+control = 0.001
+"""
+
+
+@pytest.fixture
+def task_file(tmp_path: Path) -> Path:
+    (tmp_path / "pogo.urdf").write_text(LEG_URDF)
+    path = tmp_path / "pogo.toml"
+    path.write_text(TASK_TOML)
+    return path
+
+
+def _edited(task_file: Path, old: str, new: str) -> Path:
+    text = task_file.read_text()
+    assert old in text
+    task_file.write_text(text.replace(old, new))
+    return task_file
+
+
+@pytest.mark.parametrize(("old", "new", "message"), [
+    ('frame = "toe"\nradius = 0.02', 'frame = "toe"\nradious = 0.02',
+     r"`contacts\[0\]` has unknown keys \['radious'\]"),
+    ("radius = 0.02", "radius = -0.02", r"`contacts\[toe\].radius` must be finite > 0"),
+    ("friction = 0.5", "friction = -1", r"`contacts\[toe\].friction` must be finite >= 0"),
+    ('base = "planar_xz"', 'base = "hovering"', r"`robot.base` must be one of fixed"),
+    ("horizon = 1.0", "horizon = 0", r"`horizon` must be finite > 0"),
+    ("n_intervals = 20", "n_intervals = 2.5", r"`n_intervals` must be a positive integer"),
+    ("t = 0.5\n", "t = 1.5\n", r"`waypoints` times must increase within the horizon"),
+    ('[robot]', 'guess = "oracle"\n[robot]', r"`guess` must be one of start, reference"),
+    ("lift_offs = { toe = 1 }", "lift_offs = { toe = 0 }",
+     r"`goals.lift_offs.toe` must be a positive integer"),
+    ("[goals]", "[goal]", r"`task` has unknown keys \['goal'\]"),
+    ("horizon = 1.0\n", "", r"`task` lacks \['horizon'\]"),
+    ("control = 0.001", "control = 'cheap'", r"`costs.control` must be a number"),
+])
+def test_task_file_errors_name_the_field(task_file, old, new, message):
+    path = _edited(task_file, old, new)
+    with pytest.raises(InvalidInput, match=message) as error:
+        load_task(path)
+    assert str(path) in str(error.value)
+
+
+def test_task_file_errors_for_missing_and_broken_files(tmp_path):
+    with pytest.raises(InvalidInput, match="not found"):
+        load_task(tmp_path / "none.toml")
+    (tmp_path / "bad.toml").write_text("name = \n")
+    with pytest.raises(InvalidInput, match="is not valid TOML"):
+        load_task(tmp_path / "bad.toml")
+
+
+@pytest.mark.parametrize(("old", "new", "message"), [
+    ("z = 0.32\nleg = 0.3", "z = 0.30\nleg = 0.3",
+     r"the start puts contacts \['toe'\] below the terrain"),
+    ("tracking = { x = 50,", "tracking = { pitch = 5, x = 50,",
+     r"`costs.tracking` names \['pitch'\], which the robot has not; its names: x, z, leg"),
+    ("lift_offs = { toe = 1 }", "lift_offs = { heel = 1 }",
+     r"`goals.lift_offs` names \['heel'\], which are not contacts"),
+    ("[robot]", 'actuated = ["knee"]\n[robot]', r"`actuated` names \['knee'\], which are not"),
+    ("friction = 0.5", "friction = 0.0", r"`contacts\[toe\].no_slip` needs friction > 0"),
+])
+def test_build_errors_name_the_field(task_file, old, new, message):
+    with pytest.raises(InvalidInput, match=message):
+        build_task(load_task(_edited(task_file, old, new)))
+
+
+def test_an_actuated_joint_without_an_effort_limit_asks_for_one(task_file):
+    path = task_file.parent / "pogo.urdf"
+    path.write_text(LEG_URDF.replace(' effort="40"', ' effort="0"'))
+    with pytest.raises(InvalidInput, match=r"joint `leg` has no effort limit in the URDF; "
+                                           r"give one in the task: effort = \{ leg = 50.0 \}"):
+        build_task(load_task(task_file))
+    setup = build_task(load_task(_edited(task_file, "[robot]", "effort = { leg = 25.0 }\n"
+                                                               "[robot]")))
+    assert setup.problem.u_upper == pytest.approx([25.0])
+
+
+def test_the_problem_follows_the_urdf_and_the_task(task_file):
+    setup = build_task(load_task(task_file))
+    problem, cls = setup.problem, setup.problem.system.cls
+    assert cls.q_names == ("x", "z", "leg")
+    assert cls.v_names == ("v_x", "v_z", "v_leg") and cls.control_names == ("u_leg",)
+    # the URDF's effort and stroke; the base unbounded
+    assert problem.u_lower == pytest.approx([-40.0]) and problem.u_upper == pytest.approx([40.0])
+    assert problem.q_lower[2] == pytest.approx(0.1) and problem.q_upper[2] == pytest.approx(0.5)
+    assert problem.q_lower[0] <= -1e19 and problem.q_upper[1] >= 1e19
+    # the toe's gap: z - leg - radius (closed form of this robot)
+    gap = cls.function("gaps")
+    for q in ([0.0, 0.32, 0.3], [0.4, 0.7, 0.2], [-1.0, 0.45, 0.5]):
+        assert float(gap(q)) == pytest.approx(q[1] - q[2] - 0.02, abs=1e-12)
+    contact = cls.contacts[0]
+    assert contact.mu == 0.5 and contact.a_n == 100.0
+    # M(q) of the URDF: the base carries 1.1 kg in x and z, the shin 0.1 kg on the leg
+    mass = np.asarray(ca.Function("M", [cls.q], [cls.mass_matrix])([0, 0.32, 0.3]))
+    assert mass == pytest.approx(np.array([[1.1, 0, 0], [0, 1.1, -0.1], [0, -0.1, 0.1]]))
+    assert [type(g).__name__ for g in problem.goals] == ["LiftOffs", "Moves"]
+    assert problem.guess is None  # the start everywhere: no contact schedule assumed
+    # guess = "reference": the reference, z from 0.32 through 0.8 at T/2 back to 0.32
+    guided = build_task(load_task(_edited(task_file, "[robot]", 'guess = "reference"\n'
+                                                                "[robot]"))).problem.guess
+    assert guided.shape == (21, 6)
+    assert guided[[0, 10, 20], 1] == pytest.approx([0.32, 0.8, 0.32])
+    assert guided[:, 0] == pytest.approx(0.0) and guided[[0, 20], 2] == pytest.approx(0.3)
+    assert setup.scene == {"terrain": {"type": "flat", "height": 0.0, "normal": [0, 0, 1.0]}}
+
+
+def test_the_running_cost_tracks_the_waypoints(task_file):
+    """At the clock's sample times the running cost is the weighted squared distance to
+    the spline through the start and the way points (z: 0.32, 0.8 at 0.5 s, 0.32 at 1 s)."""
+    setup = build_task(load_task(task_file))
+    tf = setup.problem.system
+    cost = ca.Function("L", [tf.y, tf.u], [setup.problem.running_cost])
+    for t, z_ref in ((0.0, 0.32), (0.5, 0.8), (1.0, 0.32)):
+        y = np.asarray(tf.initial_state([0.1, 0.5, 0.3], [0.0, 0.0, 0.0], t0=t)).ravel()
+        expected = 50 * 0.1 ** 2 + 500 * (0.5 - z_ref) ** 2 + 0.001 * 2.0 ** 2
+        assert float(cost(y, [2.0])) == pytest.approx(expected, rel=1e-9)
+    terminal = ca.Function("M", [tf.y], [setup.problem.terminal_cost])
+    y = np.asarray(tf.initial_state([0.1, 0.5, 0.2], [0.0, 0.0, 0.0])).ravel()
+    expected = 300 * (0.1 ** 2 + (0.5 - 0.32) ** 2 + (0.2 - 0.3) ** 2)
+    assert float(terminal(y)) == pytest.approx(expected, rel=1e-9)
+
+
+def test_each_contact_keeps_its_own_friction():
+    task = task_from_dict({
+        "name": "two feet", "horizon": 1.0, "n_intervals": 5,
+        "robot": {"source": "hopper", "base": "planar"},
+        "contacts": [{"frame": "foot", "radius": 0.02, "friction": 0.3},
+                     {"frame": "base", "radius": 0.05}],
+        "start": {"z": 0.6, "leg_joint": 0.5},
+        "effort": {"hip_joint": 10.0}})
+    cls = build_task(task).problem.system.cls
+    assert [c.mu for c in cls.contacts] == [0.3, 0.0]
+    assert cls.contacts[0].tangents.shape == (5, 1) and cls.contacts[1].tangents.numel() == 0
+    assert cls.control_names == ("u_hip_joint", "u_leg_joint")
+
+
+def test_validation_of_the_dataclasses():
+    with pytest.raises(InvalidInput, match="restitution` must lie in"):
+        ContactEntry("foot", 0.02, restitution=1.5)
+    with pytest.raises(InvalidInput, match="`contacts` names a frame twice"):
+        Task(name="t", robot=task_from_dict({
+            "name": "t", "horizon": 1.0, "n_intervals": 5, "robot": {"source": "hopper"},
+            "contacts": [{"frame": "foot", "radius": 0.02}]}).robot,
+            contacts=(ContactEntry("foot", 0.02), ContactEntry("foot", 0.03)),
+            horizon=1.0, n_intervals=5)
+
+
+def test_presets_and_shipped_tasks_load():
+    for name, preset in SOLVER_PRESETS.items():
+        assert preset().attempts >= 1, name
+    for name, path in shipped_tasks().items():
+        task = load_task(path)
+        assert task.name == name and task.description
+        build_task(task)
+
+
+def test_the_hopper_keeps_its_settings_as_presets():
+    from tfcontact.scenes.hopper import hopper_options
+
+    assert hopper_options("short") == SOLVER_PRESETS["default"]()
+    assert hopper_options("bench") == SOLVER_PRESETS["fast"]()
+
+
+@pytest.mark.slow
+def test_plan_a_task_file_of_a_new_robot(task_file, tmp_path):
+    """`tfcontact plan FILE.toml`: the test's own robot hops once, verified, its figures
+    and replay written."""
+    from tfcontact.cli import main
+
+    out = tmp_path / "out"
+    code = main(["plan", str(task_file), "--out", str(out), "--quiet"])
+    assert code == 0
+    summary = (out / "summary.json").read_text()
+    assert '"status": "converged"' in summary and '"success": true' in summary
+    assert (out / "replay.html").stat().st_size > 10_000
+    assert (out / "trajectory.npz").is_file()
+
+
+def test_plan_list_shows_the_shipped_tasks(capsys):
+    from tfcontact.cli import main
+
+    assert main(["plan", "--list"]) == 0
+    out = capsys.readouterr().out
+    for name in shipped_tasks():
+        assert name in out
+    assert textwrap.dedent("PATH.toml") in out

@@ -1,0 +1,37 @@
+"""Planning tasks as data: a `Task` (or a TOML task file with the same fields) states the
+robot, its contacts, the terrain, the start, way points, goals, costs, bounds, horizon and
+solver preset; `build_task` turns it into the contact problem that `solve_contact` solves.
+
+    tfcontact plan path/to/task.toml --out DIR
+"""
+
+from tfcontact.task.build import TaskSetup, build_task, coordinate_names
+from tfcontact.task.files import SHIPPED, load_task, shipped_tasks, task_from_dict
+from tfcontact.task.presets import SOLVER_PRESETS
+from tfcontact.task.spec import (
+    ContactEntry,
+    Costs,
+    Goals,
+    PlaneTerrain,
+    RobotEntry,
+    Task,
+    Waypoint,
+)
+
+__all__ = [
+    "SHIPPED",
+    "SOLVER_PRESETS",
+    "ContactEntry",
+    "Costs",
+    "Goals",
+    "PlaneTerrain",
+    "RobotEntry",
+    "Task",
+    "TaskSetup",
+    "Waypoint",
+    "build_task",
+    "coordinate_names",
+    "load_task",
+    "shipped_tasks",
+    "task_from_dict",
+]

@@ -1,0 +1,146 @@
+"""Task files: a TOML file with the fields of `Task`, and the task files shipped with
+tfcontact (`shipped_tasks`).
+
+    name = "vertical-hop"
+    horizon = 1.0
+    n_intervals = 20
+    [robot]
+    source = "hopper"             # a URDF path, a project robot or an example-robot-data name
+    base = "planar"
+    locked = { hip_joint = 0.0 }
+    [[contacts]]
+    frame = "foot"
+    radius = 0.02
+    friction = 0.45
+    [start]
+    z = 0.52
+    [[waypoints]]
+    t = 0.5
+    z = 0.8
+    [goals]
+    lift_offs = { foot = 1 }
+
+A relative URDF path is read relative to the task file's folder first.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from tfcontact.errors import InvalidInput
+from tfcontact.task.spec import (
+    ContactEntry,
+    Costs,
+    Goals,
+    PlaneTerrain,
+    RobotEntry,
+    Task,
+    Waypoint,
+)
+
+SHIPPED = Path(__file__).resolve().parent / "shipped"
+"""The folder of the task files shipped with tfcontact (`tfcontact plan --list`)."""
+
+_TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "start",
+        "actuated", "effort", "bounds", "terrain", "waypoints", "goals", "costs", "solver",
+        "guess", "a_n", "gap_scale"}
+_ROBOT = {"source", "base", "locked"}
+_CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain"}
+_TERRAIN = {"height", "normal"}
+_GOALS = {"end", "tolerance", "progress", "lift_offs", "lift_height", "moves"}
+_COSTS = {"tracking", "terminal", "control"}
+
+
+def _table(data: object, where: str, keys: set[str], required: tuple[str, ...] = ()
+           ) -> dict[str, Any]:
+    if not isinstance(data, Mapping):
+        raise InvalidInput(f"`{where}` must be a table, got {data!r}")
+    unknown = sorted(set(data) - keys)
+    if unknown:
+        raise InvalidInput(f"`{where}` has unknown keys {unknown}; its keys: "
+                           f"{', '.join(sorted(keys))}")
+    missing = [k for k in required if k not in data]
+    if missing:
+        raise InvalidInput(f"`{where}` lacks {missing}")
+    return dict(data)
+
+
+def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
+    """The `Task` of a parsed task file (`folder`: where relative URDF paths are looked up
+    first).
+
+    Raises:
+        InvalidInput: an unknown or missing key, or a bad value, naming the field.
+    """
+    top = _table(data, "task", _TOP, ("name", "robot", "contacts", "horizon", "n_intervals"))
+    robot = _table(top["robot"], "robot", _ROBOT, ("source",))
+    source = robot["source"]
+    if folder is not None and isinstance(source, str) and source.endswith(".urdf"):
+        local = folder / source
+        if not Path(source).is_absolute() and local.is_file():
+            source = str(local)
+    contacts = top["contacts"]
+    if not isinstance(contacts, list):
+        raise InvalidInput("`contacts` must be an array of tables: [[contacts]]")
+    waypoints = top.get("waypoints", [])
+    if not isinstance(waypoints, list):
+        raise InvalidInput("`waypoints` must be an array of tables: [[waypoints]]")
+    parsed_waypoints = []
+    for k, w in enumerate(waypoints):
+        if not isinstance(w, Mapping) or "t" not in w:
+            raise InvalidInput(f"`waypoints[{k}]` must be a table with a time t [s] and "
+                               "coordinates, e.g. t = 0.5, z = 0.8")
+        parsed_waypoints.append(Waypoint(w["t"], {n: v for n, v in w.items() if n != "t"}))
+    actuated = top.get("actuated")
+    return Task(
+        name=top["name"], description=top.get("description", ""),
+        robot=RobotEntry(source=source, base=robot.get("base", "fixed"),
+                         locked=robot.get("locked", {})),
+        contacts=tuple(ContactEntry(**_table(c, f"contacts[{k}]", _CONTACT,
+                                             ("frame", "radius")))
+                       for k, c in enumerate(contacts)),
+        horizon=top["horizon"], n_intervals=top["n_intervals"],
+        start=top.get("start", {}),
+        actuated=None if actuated is None else tuple(actuated)
+        if isinstance(actuated, list) else actuated,
+        effort=top.get("effort", {}),
+        bounds=top.get("bounds", {}),
+        terrain=PlaneTerrain(**{k: tuple(v) if k == "normal" and isinstance(v, list) else v
+                                for k, v in _table(top.get("terrain", {}), "terrain",
+                                                   _TERRAIN).items()}),
+        waypoints=tuple(parsed_waypoints),
+        goals=Goals(**_table(top.get("goals", {}), "goals", _GOALS)),
+        costs=Costs(**_table(top.get("costs", {}), "costs", _COSTS)),
+        solver=top.get("solver", "default"), guess=top.get("guess", "start"),
+        a_n=top.get("a_n", 100.0), gap_scale=top.get("gap_scale", 30.0),
+    )
+
+
+def load_task(path: str | Path) -> Task:
+    """Read and validate a task file.
+
+    Raises:
+        InvalidInput: the file is missing, not TOML, or a field is bad (the message names
+            the file and the field).
+    """
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise InvalidInput(f"task file {path} not found") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise InvalidInput(f"task file {path} is unreadable: {error}") from None
+    except tomllib.TOMLDecodeError as error:
+        raise InvalidInput(f"task file {path} is not valid TOML: {error}") from None
+    try:
+        return task_from_dict(data, path.resolve().parent)
+    except (InvalidInput, TypeError) as error:
+        raise InvalidInput(f"task file {path}: {error}") from None
+
+
+def shipped_tasks() -> dict[str, Path]:
+    """The shipped task files by name (file stem)."""
+    return {p.stem: p for p in sorted(SHIPPED.glob("*.toml"))}

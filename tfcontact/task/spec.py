@@ -1,0 +1,335 @@
+"""A planning task as data: robot, contacts, terrain, start, way points, goals, costs,
+bounds, horizon and solver preset (`Task`), validated field by field.
+
+Coordinates are named as a user reads them: the base's `tfcontact.robot.BASE_COORDINATES`
+("x", "z", "pitch", ...) and each 1-DoF joint by its URDF name; velocities are "v_" and
+controls "u_" followed by the coordinate's name. Every error names the field (as in the
+TOML file: `contacts[1].radius`) and the fix.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+from tfcontact.errors import InvalidInput, positive_int
+from tfcontact.robot.spec import BASES
+
+GUESSES = ("start", "reference")
+"""The initial guesses a task can ask for (`Task.guess`)."""
+
+
+def finite(value: object, where: str, *, low: float | None = None, strict: bool = False,
+           unit: str = "") -> float:
+    """`value` as a float, or `InvalidInput` naming the field `where`."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise InvalidInput(f"`{where}` must be a number{unit and f' [{unit}]'}, got {value!r}")
+    value = float(value)
+    too_low = low is not None and (value <= low if strict else value < low)
+    if not math.isfinite(value) or too_low:
+        bound = "" if low is None else f" {'>' if strict else '>='} {low:g}"
+        raise InvalidInput(f"`{where}` must be finite{bound}{unit and f' [{unit}]'}, "
+                           f"got {value!r}")
+    return value
+
+
+def _names(mapping: Mapping[str, Any], where: str) -> dict[str, Any]:
+    if not isinstance(mapping, Mapping) or not all(isinstance(k, str) and k for k in mapping):
+        raise InvalidInput(f"`{where}` must be a table of names, got {mapping!r}")
+    return dict(mapping)
+
+
+def _frozen(mapping: Mapping[str, Any]) -> Mapping[str, Any]:
+    return MappingProxyType(dict(mapping))
+
+
+@dataclass(frozen=True)
+class RobotEntry:
+    """Which robot: a URDF path, a project robot ("hopper") or an example-robot-data name.
+
+    Args:
+        source: as `tfcontact.robot.load_robot`'s source.
+        base: "fixed", "planar" (x, z, pitch), "planar_xz" (x, z) or "floating".
+        locked: joints fixed and removed, with their positions {joint: rad or m}.
+    """
+
+    source: str
+    base: str = "fixed"
+    locked: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.source, str) or not self.source:
+            raise InvalidInput(f"`robot.source` must be a URDF path or a robot name, got "
+                               f"{self.source!r}")
+        if self.base not in BASES:
+            raise InvalidInput(f"`robot.base` must be one of {', '.join(BASES)}, got "
+                               f"{self.base!r}")
+        locked = {k: finite(v, f"robot.locked.{k}") for k, v in
+                  _names(self.locked, "robot.locked").items()}
+        object.__setattr__(self, "locked", _frozen(locked))
+
+
+@dataclass(frozen=True)
+class ContactEntry:
+    """A contact candidate: a sphere on a frame, with its own friction and restitution.
+
+    Args:
+        frame: a frame of the robot model (a link or a fixed frame).
+        radius: the sphere's radius [m].
+        friction: Coulomb coefficient mu [-] (0: frictionless).
+        restitution: Newton's e [-]; e > 0 needs a single frictionless contact (elastic
+            time-freezing).
+        no_slip: while the sphere touches, it may not slide (v_t^2 <= K gap, with
+            K = `no_slip_gain`): a foot that steps rather than skates.
+        no_slip_gain: K [m/s^2]: the tangential speed allowed grows as sqrt(K gap) in
+            flight (1 m/s at 1 cm for the default 100).
+    """
+
+    frame: str
+    radius: float
+    friction: float = 0.0
+    restitution: float = 0.0
+    no_slip: bool = False
+    no_slip_gain: float = 100.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.frame, str) or not self.frame:
+            raise InvalidInput(f"`contacts[].frame` must be a frame name, got {self.frame!r}")
+        where = f"contacts[{self.frame}]"
+        object.__setattr__(self, "radius", finite(self.radius, f"{where}.radius", low=0.0,
+                                                  strict=True, unit="m"))
+        object.__setattr__(self, "friction", finite(self.friction, f"{where}.friction",
+                                                    low=0.0))
+        e = finite(self.restitution, f"{where}.restitution", low=0.0)
+        if e > 1.0:
+            raise InvalidInput(f"`{where}.restitution` must lie in [0, 1], got {e!r}")
+        object.__setattr__(self, "restitution", e)
+        if not isinstance(self.no_slip, bool):
+            raise InvalidInput(f"`{where}.no_slip` must be true or false, got "
+                               f"{self.no_slip!r}")
+        object.__setattr__(self, "no_slip_gain", finite(
+            self.no_slip_gain, f"{where}.no_slip_gain", low=0.0, strict=True, unit="m/s^2"))
+
+
+@dataclass(frozen=True)
+class PlaneTerrain:
+    """Flat ground: the half-space above a plane through height `height` (along `normal`).
+
+    Args:
+        height: the plane's offset along `normal` [m].
+        normal: its unit normal (normalised; default z up). A slope: e.g. (-sin a, 0, cos a).
+    """
+
+    height: float = 0.0
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "height", finite(self.height, "terrain.height", unit="m"))
+        if not isinstance(self.normal, tuple | list) or len(self.normal) != 3:
+            raise InvalidInput(f"`terrain.normal` must be 3 numbers, got {self.normal!r}")
+        normal = tuple(finite(c, "terrain.normal[]") for c in self.normal)
+        size = math.sqrt(sum(c * c for c in normal))
+        if size == 0.0:
+            raise InvalidInput("`terrain.normal` must not be zero; e.g. [0, 0, 1]")
+        object.__setattr__(self, "normal", tuple(c / size for c in normal))
+
+    def to_dict(self) -> dict:
+        return {"type": "flat", "height": self.height, "normal": list(self.normal)}
+
+
+@dataclass(frozen=True)
+class Waypoint:
+    """Where the plan should be at physical time `time`: some named coordinates or
+    velocities ({name: value}); the others are free there."""
+
+    time: float
+    values: Mapping[str, float]
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "time", finite(self.time, "waypoints[].t", low=0.0,
+                                                strict=True, unit="s"))
+        values = {k: finite(v, f"waypoints[t={self.time:g}].{k}") for k, v in
+                  _names(self.values, "waypoints[]").items()}
+        if not values:
+            raise InvalidInput(f"the way point at t = {self.time:g} s names no coordinate; "
+                               "give e.g. x = 0.4")
+        object.__setattr__(self, "values", _frozen(values))
+
+
+@dataclass(frozen=True)
+class Goals:
+    """What the plan must do, checked on its physical motion (`tfcontact.ocp.goals`).
+
+    Args:
+        end: coordinates to end at, {name: value}, each within `tolerance`.
+        tolerance: of the end values [m or rad].
+        progress: coordinates to advance by at least a distance, {name: distance}.
+        lift_offs: contacts to lift off a number of times, {frame: count}, each rising
+            above `lift_height`.
+        lift_height: [m].
+        moves: the plan must move (a do-nothing plan fails).
+    """
+
+    end: Mapping[str, float] = field(default_factory=dict)
+    tolerance: float = 0.05
+    progress: Mapping[str, float] = field(default_factory=dict)
+    lift_offs: Mapping[str, int] = field(default_factory=dict)
+    lift_height: float = 0.05
+    moves: bool = True
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "end", _frozen(
+            {k: finite(v, f"goals.end.{k}") for k, v in _names(self.end, "goals.end").items()}))
+        object.__setattr__(self, "tolerance", finite(self.tolerance, "goals.tolerance",
+                                                     low=0.0, strict=True))
+        progress = {k: finite(v, f"goals.progress.{k}") for k, v in
+                    _names(self.progress, "goals.progress").items()}
+        if any(v == 0.0 for v in progress.values()):
+            raise InvalidInput("`goals.progress` distances must not be 0")
+        object.__setattr__(self, "progress", _frozen(progress))
+        object.__setattr__(self, "lift_offs", _frozen(
+            {k: positive_int(v, f"goals.lift_offs.{k}") for k, v in
+             _names(self.lift_offs, "goals.lift_offs").items()}))
+        object.__setattr__(self, "lift_height", finite(self.lift_height, "goals.lift_height",
+                                                       low=0.0, strict=True, unit="m"))
+        if not isinstance(self.moves, bool):
+            raise InvalidInput(f"`goals.moves` must be true or false, got {self.moves!r}")
+
+
+@dataclass(frozen=True)
+class Costs:
+    """Least-squares weights.
+
+    Args:
+        tracking: per coordinate or velocity name, on the distance to the reference that
+            runs from the start through the way points naming it (integrated over time).
+        terminal: per name, on the distance of the end state to its last way point (or
+            its `goals.end` value).
+        control: on the squared controls (integrated over time).
+    """
+
+    tracking: Mapping[str, float] = field(default_factory=dict)
+    terminal: Mapping[str, float] = field(default_factory=dict)
+    control: float = 0.01
+
+    def __post_init__(self) -> None:
+        for name in ("tracking", "terminal"):
+            weights = {k: finite(v, f"costs.{name}.{k}", low=0.0) for k, v in
+                       _names(getattr(self, name), f"costs.{name}").items()}
+            object.__setattr__(self, name, _frozen(weights))
+        object.__setattr__(self, "control", finite(self.control, "costs.control", low=0.0))
+
+
+@dataclass(frozen=True)
+class Task:
+    """A planning task: everything `tfcontact plan task.toml` needs.
+
+    Main args:
+        name: the task's name (output folder, summaries).
+        robot: the `RobotEntry`.
+        contacts: the `ContactEntry`s (at least one).
+        horizon: the physical horizon T [s].
+        n_intervals: control intervals N.
+
+    Other args:
+        start: the start state {name: value}; unnamed coordinates at the model's neutral
+            configuration (0), unnamed velocities 0.
+        actuated: the actuated joints (default: every joint of the model).
+        effort: control bounds {joint: N or N m}, replacing the URDF's effort limits
+            (needed where the URDF gives none).
+        bounds: {name: [low, high]} for coordinates and velocities, replacing the URDF's
+            joint position limits.
+        terrain: the ground (`PlaneTerrain`).
+        waypoints: `Waypoint`s, in increasing time within the horizon.
+        goals, costs: `Goals`, `Costs`.
+        solver: a preset of `tfcontact.task.SOLVER_PRESETS`.
+        guess: the solver's initial guess of the states: "start" (the start state
+            everywhere: no contact schedule, no motion assumed) or "reference" (each
+            coordinate named by a way point along its reference, the others at the start).
+        a_n: the time-freezing auxiliary gain [m/s^2] of every contact.
+        gap_scale: K [1/s] of the gap's switching function (about the inverse of a finite
+            element's duration; `tfcontact.timefreezing.Inelastic.gap_scale`).
+        description: a line for `tfcontact plan --list`.
+    """
+
+    name: str
+    robot: RobotEntry
+    contacts: tuple[ContactEntry, ...]
+    horizon: float
+    n_intervals: int
+    start: Mapping[str, float] = field(default_factory=dict)
+    actuated: tuple[str, ...] | None = None
+    effort: Mapping[str, float] = field(default_factory=dict)
+    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    terrain: PlaneTerrain = field(default_factory=PlaneTerrain)
+    waypoints: tuple[Waypoint, ...] = ()
+    goals: Goals = field(default_factory=Goals)
+    costs: Costs = field(default_factory=Costs)
+    solver: str = "default"
+    guess: str = "start"
+    a_n: float = 100.0
+    gap_scale: float = 30.0
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        from tfcontact.task.presets import SOLVER_PRESETS
+
+        if not isinstance(self.name, str) or not self.name:
+            raise InvalidInput(f"`name` must be a non-empty string, got {self.name!r}")
+        if not isinstance(self.robot, RobotEntry):
+            raise InvalidInput("`robot` must be a RobotEntry (a [robot] table)")
+        contacts = tuple(self.contacts)
+        if not contacts or not all(isinstance(c, ContactEntry) for c in contacts):
+            raise InvalidInput("`contacts` needs at least one contact: [[contacts]] with "
+                               "frame and radius")
+        frames = [c.frame for c in contacts]
+        if len(set(frames)) != len(frames):
+            raise InvalidInput(f"`contacts` names a frame twice: {frames}")
+        object.__setattr__(self, "contacts", contacts)
+        object.__setattr__(self, "horizon", finite(self.horizon, "horizon", low=0.0,
+                                                   strict=True, unit="s"))
+        object.__setattr__(self, "n_intervals", positive_int(self.n_intervals, "n_intervals"))
+        object.__setattr__(self, "start", _frozen(
+            {k: finite(v, f"start.{k}") for k, v in _names(self.start, "start").items()}))
+        if self.actuated is not None:
+            actuated = tuple(self.actuated)
+            if not actuated or not all(isinstance(a, str) and a for a in actuated):
+                raise InvalidInput(f"`actuated` must list joint names, got {self.actuated!r}")
+            object.__setattr__(self, "actuated", actuated)
+        object.__setattr__(self, "effort", _frozen(
+            {k: finite(v, f"effort.{k}", low=0.0, strict=True) for k, v in
+             _names(self.effort, "effort").items()}))
+        bounds = {}
+        for k, pair in _names(self.bounds, "bounds").items():
+            if not isinstance(pair, tuple | list) or len(pair) != 2:
+                raise InvalidInput(f"`bounds.{k}` must be [low, high], got {pair!r}")
+            low, high = (finite(b, f"bounds.{k}") for b in pair)
+            if low >= high:
+                raise InvalidInput(f"`bounds.{k}` must have low < high, got {list(pair)}")
+            bounds[k] = (low, high)
+        object.__setattr__(self, "bounds", _frozen(bounds))
+        if not isinstance(self.terrain, PlaneTerrain):
+            raise InvalidInput("`terrain` must be a PlaneTerrain ([terrain] height, normal)")
+        waypoints = tuple(self.waypoints)
+        times = [w.time for w in waypoints]
+        if times != sorted(set(times)) or (times and times[-1] > self.horizon):
+            raise InvalidInput(f"`waypoints` times must increase within the horizon "
+                               f"(0, {self.horizon:g}] s, got {times}")
+        object.__setattr__(self, "waypoints", waypoints)
+        if not isinstance(self.goals, Goals) or not isinstance(self.costs, Costs):
+            raise InvalidInput("`goals` and `costs` must be Goals and Costs")
+        if self.solver not in SOLVER_PRESETS:
+            raise InvalidInput(f"`solver` must be one of {', '.join(SOLVER_PRESETS)}, got "
+                               f"{self.solver!r}")
+        if self.guess not in GUESSES:
+            raise InvalidInput(f"`guess` must be one of {', '.join(GUESSES)}, got "
+                               f"{self.guess!r}")
+        object.__setattr__(self, "a_n", finite(self.a_n, "a_n", low=0.0, strict=True,
+                                               unit="m/s^2"))
+        object.__setattr__(self, "gap_scale", finite(self.gap_scale, "gap_scale", low=0.0,
+                                                     strict=True, unit="1/s"))
+        if not isinstance(self.description, str):
+            raise InvalidInput("`description` must be a string")
