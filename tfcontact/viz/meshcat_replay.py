@@ -591,7 +591,9 @@ def replay(
     force = phys.force[i] * (1 - w[:, None, None]) + phys.force[i + 1] * w[:, None, None]
 
     # ground and camera from the motion's extent
-    base = placements[:, :, :3, 3].reshape(-1, 3)
+    # the visual bodies and the contacts: a URDF may have no visual geometry at all
+    base = np.concatenate([placements[:, :, :3, 3].reshape(-1, 3), contact_pos.reshape(-1, 3)])
+    base = base if base.size else np.zeros((1, 3))
     lo, hi = base.min(axis=0), base.max(axis=0)
     center = (lo + hi) / 2
     extent = float(max(np.max(hi - lo), 0.3))
