@@ -257,3 +257,14 @@ def test_plan_list_shows_the_shipped_tasks(capsys):
     for name in shipped_tasks():
         assert name in out
     assert textwrap.dedent("PATH.toml") in out
+
+
+def test_the_readme_shows_the_shipped_task():
+    """The README's task file is the shipped `hopper-vertical` (same data)."""
+    import re
+    import tomllib
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    block = re.search(r"## Your robot from a task file.*?```toml\n(.*?)```", readme, re.S)
+    shown = tomllib.loads(block.group(1))
+    assert shown == tomllib.loads(shipped_tasks()["hopper-vertical"].read_text())
