@@ -53,7 +53,7 @@ def test_top_level_names_resolve():
 
     for name in tfcontact.__all__:
         assert getattr(tfcontact, name) is not None, name
-    assert tfcontact.plan.__name__ == "solve_contact"
+    assert tfcontact.plan.__module__ == "tfcontact.task.solve"  # problems and tasks
     try:
         tfcontact.no_such_thing  # noqa: B018
     except AttributeError as error:

@@ -268,3 +268,13 @@ def test_the_readme_shows_the_shipped_task():
     block = re.search(r"## Your robot from a task file.*?```toml\n(.*?)```", readme, re.S)
     shown = tomllib.loads(block.group(1))
     assert shown == tomllib.loads(shipped_tasks()["hopper-vertical"].read_text())
+
+
+def test_top_level_plan_takes_tasks_and_refuses_other_things(tmp_path):
+    import tfcontact
+
+    with pytest.raises(InvalidInput, match="not found"):
+        tfcontact.plan(tmp_path / "none.toml")
+    with pytest.raises(InvalidInput, match="must be a ContactProblem, a Task or a task file"):
+        tfcontact.plan(42)
+    assert tfcontact.Task is Task and tfcontact.load_task is load_task

@@ -6,6 +6,7 @@ The entry points a robotics user needs, from a URDF to a verified plan and its r
     robot = tfcontact.load_robot("hopper", base="planar", ...)   # Pinocchio + CasADi twin
     result = tfcontact.plan(problem, options)     # time-freezing + FESD + MPCC homotopy,
                                                   # verified, task goals checked
+    result = tfcontact.plan("task.toml")          # a task file (tfcontact.task), or a Task
     tfcontact.replay(tfcontact.trajectory(result, robot), html="plan.html")
     tfcontact.run_plan("hopper", "out/hopper")    # a named plan of `tfcontact plan`
     tfcontact.simulate(system, x0, horizon=tfcontact.Physical(1.0), n_steps=20)
@@ -18,6 +19,7 @@ Layers, data flowing down the list (ARCHITECTURE.md):
 * `tfcontact.mpcc`: relaxations and homotopy for MPCCs, solved with IPOPT.
 * `tfcontact.ocp`: optimal control problems, results, task goals, the exact re-solve.
 * `tfcontact.verify`: independent checks against the original system (beside `ocp`).
+* `tfcontact.task`: planning tasks as data (TOML task files) -> contact problems.
 * `tfcontact.scenes`: reference problems and the named plans of the command line.
 * `tfcontact.sweep`: stability sweeps on Dask.
 * `tfcontact.viz`: trajectory files, meshcat replay, figures.
@@ -46,7 +48,10 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "ContactProblem": ("tfcontact.ocp", "ContactProblem"),
     "ContactSolverOptions": ("tfcontact.ocp", "ContactSolverOptions"),
     "ContactResult": ("tfcontact.ocp", "ContactResult"),
-    "plan": ("tfcontact.ocp", "solve_contact"),
+    "plan": ("tfcontact.task", "plan"),
+    "Task": ("tfcontact.task", "Task"),
+    "load_task": ("tfcontact.task", "load_task"),
+    "build_task": ("tfcontact.task", "build_task"),
     "run_plan": ("tfcontact.scenes", "run_plan"),
     "trajectory": ("tfcontact.viz.plan", "trajectory_from_result"),
     "replay": ("tfcontact.viz", "replay"),

@@ -8,6 +8,7 @@ solver preset; `build_task` turns it into the contact problem that `solve_contac
 from tfcontact.task.build import TaskSetup, build_task, coordinate_names
 from tfcontact.task.files import SHIPPED, load_task, shipped_tasks, task_from_dict
 from tfcontact.task.presets import SOLVER_PRESETS
+from tfcontact.task.solve import plan
 from tfcontact.task.spec import (
     ContactEntry,
     Costs,
@@ -32,6 +33,7 @@ __all__ = [
     "build_task",
     "coordinate_names",
     "load_task",
+    "plan",
     "shipped_tasks",
     "task_from_dict",
 ]
