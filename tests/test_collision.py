@@ -415,3 +415,155 @@ def test_distances_do_not_depend_on_the_order_of_the_samples(tilting_box):
     np.testing.assert_allclose(backwards.terrain_distance[::-1], forwards.terrain_distance,
                                atol=1e-9)
     assert forwards.terrain_distance.min() < -0.1
+
+
+# ----------------------------------------------------------------------------- terrains
+
+R_PROBE = 0.01  # radius of the probe sphere [m]
+
+
+def _terrain_distance(obstacles, p):
+    """coal's signed distance of a probe sphere centred at p to the nearest obstacle, plus
+    the probe's radius: the distance of the point p to the terrain."""
+    probe = coal.Sphere(R_PROBE)
+    where = coal.Transform3s()
+    where.setTranslation(np.asarray(p, dtype=float))
+    best = math.inf
+    for o in obstacles:
+        placed = coal.Transform3s(o.placement.rotation, o.placement.translation)
+        d = coal.distance(o.geometry, placed, probe, where, coal.DistanceRequest(),
+                          coal.DistanceResult())
+        best = min(best, d)
+    return best + R_PROBE
+
+
+def _terrain(*primitives):
+    from tfcontact.robot import Terrain
+
+    return Terrain(tuple(primitives))
+
+
+SLOPE = 0.2  # dz/dx of the sloped plane below
+S = math.hypot(1.0, SLOPE)
+
+
+@pytest.mark.parametrize(("point", "expected"), [
+    # z = 0.1 + 0.2 x: distance (z - 0.1 - 0.2 x) / sqrt(1 + 0.2^2)
+    ((0.0, 0.0, 0.3), 0.2 / S),
+    ((1.0, 0.5, 0.3), 0.0),
+    ((-1.0, 0.0, -0.2), (-0.2 - 0.1 + 0.2) / S),
+])
+def test_terrain_obstacles_sloped_plane(point, expected):
+    from tfcontact.robot import Plane
+    from tfcontact.verify.collision import terrain_obstacles
+
+    obstacles = terrain_obstacles(_terrain(Plane.sloped(0.1, (SLOPE, 0.0))))
+    assert [o.name for o in obstacles] == ["plane[0]"]
+    assert _terrain_distance(obstacles, point) == pytest.approx(expected, abs=1e-9)
+
+
+@pytest.mark.parametrize(("point", "expected"), [
+    ((1.0, 0.0, 0.3), 0.2),                                 # over the step's top (0.1)
+    ((0.3, 0.0, 0.09), 0.09),                               # before it: the ground
+    ((0.4, 0.0, 0.2), math.hypot(0.12, 0.12) - 0.02),       # its rounded edge, centre (0.52, 0.08)
+    ((0.45, 0.3, 0.05), 0.05),                              # its face (x = 0.5) and the ground
+    ((1.0, 0.0, 0.05), -0.05),                              # 5 cm into the top
+])
+def test_terrain_obstacles_step_with_rounded_edge(point, expected):
+    from tfcontact.robot import Box, Plane
+    from tfcontact.verify.collision import terrain_obstacles
+
+    obstacles = terrain_obstacles(_terrain(Plane(), Box(x=(0.5, math.inf), top=0.1,
+                                                        rounding=0.02)))
+    assert [o.name for o in obstacles] == ["plane[0]", "box[1]"]
+    assert _terrain_distance(obstacles, point) == pytest.approx(expected, abs=1e-9)
+
+
+def test_terrain_obstacles_platform_in_3d():
+    from tfcontact.robot import Box
+    from tfcontact.verify.collision import terrain_obstacles
+
+    obstacles = terrain_obstacles(_terrain(Box(x=(0.0, 1.0), y=(-0.5, 0.5), top=0.1,
+                                               rounding=0.0)))
+    # a corner of the platform's top: the distance to the point (1, 0.5, 0.1)
+    assert _terrain_distance(obstacles, (1.3, 0.9, 0.3)) == \
+        pytest.approx(math.sqrt(0.3 ** 2 + 0.4 ** 2 + 0.2 ** 2), abs=1e-9)
+
+
+@pytest.mark.parametrize(("point", "expected"), [
+    ((0.5, 0.0, 0.2), 0.2),
+    ((1.25, 0.0, 0.1), math.hypot(0.26, 0.11) - 0.01),  # mid-hole: both rims' arcs
+    ((1.25, 0.0, -0.3), 0.25),                          # down the hole: its walls
+    ((1.6, 0.0, -0.05), -0.05),                         # in the ground beyond it
+])
+def test_terrain_obstacles_a_planar_hole(point, expected):
+    from tfcontact.robot import Hole, Plane
+    from tfcontact.verify.collision import terrain_obstacles
+
+    obstacles = terrain_obstacles(_terrain(Plane(), Hole(x=(1.0, 1.5), rounding=0.01)))
+    assert len(obstacles) == 2
+    assert _terrain_distance(obstacles, point) == pytest.approx(expected, abs=1e-9)
+
+
+@pytest.mark.parametrize(("point", "expected"), [
+    ((1.75, 0.0, 0.05), 0.05),   # on the ground between the holes
+    ((2.2, 0.0, -0.25), 0.05),   # over the second hole's floor (-0.3); walls 0.2 away
+    ((1.2, 0.0, -0.5), -0.2),    # 0.2 m below the first hole's floor (-0.3)
+])
+def test_terrain_obstacles_planar_holes_with_floor(point, expected):
+    from tfcontact.robot import Hole, Plane
+    from tfcontact.verify.collision import terrain_obstacles
+
+    terrain = _terrain(Plane(), Hole(x=(1.0, 1.5), floor=-0.3),
+                       Hole(x=(2.0, 2.4), floor=-0.3))
+    obstacles = terrain_obstacles(terrain)
+    assert [o.name for o in obstacles][-2:] == ["floor of hole[1]", "floor of hole[2]"]
+    assert _terrain_distance(obstacles, point) == pytest.approx(expected, abs=1e-9)
+
+
+@pytest.mark.parametrize(("holes", "point", "expected"), [
+    # one hole x (1, 2), y (-0.5, 0.5): its rims are 0.5 m from the centre
+    (1, (1.5, 0.0, 0.1), math.hypot(0.5, 0.1)),
+    (1, (1.5, 0.4, -0.05), 0.1),
+    (1, (0.5, 0.0, 0.1), 0.1),
+    # and a second one, x (3, 4), y (0, 1)
+    (2, (2.5, 0.0, 0.1), 0.1),
+    (2, (1.5, 0.0, 0.1), math.hypot(0.5, 0.1)),
+    (2, (3.5, 0.5, -0.1), 0.5),
+    (2, (3.5, -0.3, 0.2), 0.2),
+])
+def test_terrain_obstacles_holes_in_3d(holes, point, expected):
+    from tfcontact.robot import Hole, Plane
+    from tfcontact.verify.collision import terrain_obstacles
+
+    cut = [Hole(x=(1.0, 2.0), y=(-0.5, 0.5)), Hole(x=(3.0, 4.0), y=(0.0, 1.0))][:holes]
+    obstacles = terrain_obstacles(_terrain(Plane(), *cut))
+    assert _terrain_distance(obstacles, point) == pytest.approx(expected, abs=1e-9)
+
+
+def test_terrain_obstacles_are_validated():
+    from tfcontact.robot import Plane
+    from tfcontact.verify.collision import terrain_obstacles
+
+    with pytest.raises(InvalidInput, match="`terrain` must be a tfcontact.robot.Terrain"):
+        terrain_obstacles(Ground())
+    with pytest.raises(InvalidInput, match=r"`extent` must be a finite number > 0"):
+        terrain_obstacles(_terrain(Plane()), extent=0.0)
+
+
+def test_scene_obstacles_read_a_terrain_of_primitives(leg):
+    """A plan's sidecar with `Terrain.to_dict()`: the torso at z = 0.42 puts the foot
+    (r 0.02, 0.4 below) on the ground and the knee (r 0.03 at (0.15, -0.2)) over a 10 cm
+    step: 0.22 - 0.03 - 0.1 = 9 cm clear of it."""
+    from tfcontact.robot import Box, Plane
+
+    path, _ = leg
+    terrain = _terrain(Plane(), Box(x=(0.1, math.inf), top=0.1, rounding=0.01))
+    t = np.array([0.0, 0.1])
+    q = np.array([[0.0, 0.42], [0.0, 0.42]])
+    traj = _trajectory(path, q, t, {"terrain": terrain.to_dict()})
+    assert [o.name for o in scene_obstacles(traj)] == ["plane[0]", "box[1]"]
+    report = trajectory_collisions(traj, options=CollisionOptions(self_collision=False))
+    knee = next(b for b in report.bodies if b.body == "knee_0")
+    assert knee.min_distance == pytest.approx(0.22 - 0.03 - 0.1, abs=1e-9)
+    assert report.passed

@@ -52,6 +52,7 @@ from tfcontact.verify.collision import (
     check_robot_collisions,
     ground_obstacle,
     halfspace_obstacle,
+    terrain_obstacles,
 )
 from tfcontact.verify.methods import (
     AutoReplay,
@@ -107,6 +108,7 @@ __all__ = [
     "box_obstacle",
     "check_collisions",
     "check_robot_collisions",
+    "terrain_obstacles",
     "check_time_freezing_plan",
     "clock_checks",
     "collocation_impulses",

@@ -41,7 +41,7 @@ import numpy as np
 import pinocchio as pin
 
 from tfcontact.errors import InvalidInput, positive_int
-from tfcontact.robot import Ground, Robot
+from tfcontact.robot import Box, Ground, Hole, Plane, Robot, Terrain
 
 # ----------------------------------------------------------------------------- obstacles
 
@@ -140,6 +140,115 @@ def box_obstacle(name: str, size: Sequence[float], *, center: Sequence[float] = 
             or not np.allclose(rot.T @ rot, np.eye(3), atol=1e-9) or np.linalg.det(rot) < 0:
         raise InvalidInput(f"`rotation` must be a 3x3 rotation matrix, got {rotation!r}")
     return Obstacle(name, coal.Box(*lengths), pin.SE3(rot, _vector3(center, "center")))
+
+
+def terrain_obstacles(terrain: Terrain, *, extent: float = 100.0) -> tuple[Obstacle, ...]:
+    """The solids of a `tfcontact.robot.Terrain` as obstacles, with the distances of its
+    contact gaps.
+
+    * A `Plane` without holes: the half-space below it, named "plane[i]" (i its index in
+      `terrain.primitives`).
+    * A `Box`: a coal box shrunk by its rounding rho with a swept sphere of radius rho
+      (coal's rounded box: the Minkowski sum of `Terrain`'s gap), named "box[i]"; an
+      infinite side ends `extent` m from the origin, and the solid reaches `extent` m
+      below its top.
+    * A plane with holes (horizontal, as `Terrain` requires): the ground around them as
+      boxes, "plane[i] beside holes (k)". One hole: the half-infinite boxes of
+      `Hole.cut`, rims rounded: exact. Several holes, all without a y-range (a planar
+      scene's ditches): the boxes between them, each rounded with the smaller rim
+      rounding of its two holes (exact for equal roundings, else a sharper rim: a larger
+      solid, distances at most the difference of the roundings too small). Several holes
+      in 3D: the cells of the grid of their footprints that no hole covers, with sharp
+      rims (distances too small by at most the rounding near a rim, and depths inside
+      the ground underestimated near the cells' seams). A hole's floor is the half-space
+      below it, "floor of hole[j]".
+
+    The terrain's smooth minimum (`Terrain.smoothing`) is not modelled: coal measures the
+    exact distance to the union, which is at most smoothing/4 above the gap's.
+
+    Args:
+        terrain: the terrain.
+        extent: where infinite sides end, and the depth of boxes [m]; far beyond the
+            plan (coal's distances stay exact to 1e-12 with boxes of 1000 m).
+
+    Raises:
+        InvalidInput: `terrain` not a Terrain, `extent` not a finite number > 0.
+    """
+    if not isinstance(terrain, Terrain):
+        raise InvalidInput(f"`terrain` must be a tfcontact.robot.Terrain, got "
+                           f"{type(terrain).__name__}")
+    if isinstance(extent, bool) or not isinstance(extent, int | float) \
+            or not (math.isfinite(extent) and extent > 0.0):
+        raise InvalidInput(f"`extent` must be a finite number > 0 [m], got {extent!r}")
+    index = {id(p): i for i, p in enumerate(terrain.primitives)}
+    holes = terrain.holes
+    out: list[Obstacle] = []
+    for p in terrain.primitives:
+        i = index[id(p)]
+        if isinstance(p, Box):
+            out.append(_rounded_box(f"box[{i}]", p.x, p.y, p.top, p.rounding, extent))
+        elif isinstance(p, Plane) and not holes:
+            out.append(halfspace_obstacle(f"plane[{i}]", normal=p.normal,
+                                          height=p.normal[2] * p.height))
+        elif isinstance(p, Plane):
+            cells = _ground_beside(holes, extent)
+            out += [_rounded_box(f"plane[{i}] beside holes ({k})", x, y, p.height, rho,
+                                 extent) for k, (x, y, rho) in enumerate(cells)]
+    for hole in holes:
+        if hole.floor is not None:
+            out.append(halfspace_obstacle(f"floor of hole[{index[id(hole)]}]",
+                                          height=hole.floor))
+    return tuple(out)
+
+
+_Range = tuple[float, float]
+
+
+def _ground_beside(holes: tuple[Hole, ...], extent: float
+                   ) -> list[tuple[_Range, _Range | None, float]]:
+    """(x, y, rounding) of boxes whose union is a plane minus `holes` (infinite ends
+    kept; `_rounded_box` cuts them)."""
+    inf = math.inf
+    if len(holes) == 1:  # Hole.cut's half-infinite boxes, overlapping: exact
+        h = holes[0]
+        cells: list[tuple[_Range, _Range | None, float]] = [
+            ((-inf, h.x[0]), None, h.rounding), ((h.x[1], inf), None, h.rounding)]
+        if h.y is not None:
+            cells += [((-inf, inf), (-inf, h.y[0]), h.rounding),
+                      ((-inf, inf), (h.y[1], inf), h.rounding)]
+        return cells
+    if all(h.y is None for h in holes):
+        ordered = sorted(holes, key=lambda h: h.x[0])
+        cells = [((-inf, ordered[0].x[0]), None, ordered[0].rounding)]
+        for a, b in zip(ordered, ordered[1:], strict=False):
+            cells.append(((a.x[1], b.x[0]), None, min(a.rounding, b.rounding)))
+        cells.append(((ordered[-1].x[1], inf), None, ordered[-1].rounding))
+        return cells
+    xs = sorted({-inf, inf, *(b for h in holes for b in h.x)})
+    ys = sorted({-inf, inf, *(b for h in holes if h.y is not None for b in h.y)})
+    cells = []
+    for x in zip(xs, xs[1:], strict=False):
+        for y in zip(ys, ys[1:], strict=False):
+            mid = [(lo + hi) / 2 if math.isfinite(lo + hi) else (hi - 1 if math.isfinite(hi)
+                                                                 else lo + 1)
+                   for lo, hi in (x, y)]
+            if not any(h.covers(*mid) for h in holes):
+                cells.append((x, y, 0.0))
+    return cells
+
+
+def _rounded_box(name: str, x: _Range, y: _Range | None, top: float, rounding: float,
+                 extent: float) -> Obstacle:
+    """The solid {x, y in their ranges, top - extent <= z <= top}, edges rounded: a coal
+    box shrunk by `rounding` with that swept-sphere radius; infinite ends at +-extent."""
+    ranges = [x, (-math.inf, math.inf) if y is None else y, (top - extent, top)]
+    lo = np.array([max(a, -extent) for a, _ in ranges]) + rounding
+    hi = np.array([min(b, extent) for _, b in ranges]) - rounding
+    if np.any(hi <= lo):
+        raise InvalidInput(f"obstacle `{name}` lies beyond `extent` = {extent} m; raise it")
+    shape = coal.Box(*(hi - lo))
+    shape.setSweptSphereRadius(rounding)
+    return Obstacle(name, shape, pin.SE3(np.eye(3), (lo + hi) / 2))
 
 
 # ----------------------------------------------------------------------------- options

@@ -20,7 +20,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from tfcontact.errors import InvalidInput
-from tfcontact.robot import Robot, RobotSpec, load_robot
+from tfcontact.robot import Robot, RobotSpec, Terrain, load_robot
 from tfcontact.verify.collision import (
     CollisionOptions,
     CollisionReport,
@@ -28,6 +28,7 @@ from tfcontact.verify.collision import (
     box_obstacle,
     check_robot_collisions,
     halfspace_obstacle,
+    terrain_obstacles,
 )
 from tfcontact.viz.trajectory import Trajectory, physical_time
 
@@ -35,24 +36,31 @@ from tfcontact.viz.trajectory import Trajectory, physical_time
 def scene_obstacles(traj: Trajectory) -> tuple[Obstacle, ...]:
     """The terrain of a trajectory's scene as obstacles.
 
-    Reads `scene['terrain']` ({"type": "flat", "height": h, "normal": n}; default flat at
-    0, z up): the solid half-space below the plane, named "ground"; and the optional
+    Reads `scene['terrain']`: {"type": "flat", "height": h, "normal": n} (default flat at
+    0, z up), the solid half-space below the plane, named "ground"; or a terrain of
+    primitives, `tfcontact.robot.Terrain.to_dict()` ({"kind": "terrain", ...}), as
+    `tfcontact.verify.collision.terrain_obstacles` (planes, boxes, the ground beside
+    holes, hole floors, named by the primitive's index); and the optional
     `scene['boxes']` ([{"center": [x, y, z], "size": [lx, ly, lz]}, ...]), named "box 1",
     "box 2", ... (or their "name"). The monoped's `holes` are regions the foot's centre
     avoids, not solids: they are not obstacles.
 
     Raises:
-        InvalidInput: a terrain type other than "flat", or a box without centre and size.
+        InvalidInput: a terrain type other than "flat" or a terrain description, a bad
+            terrain description, or a box without centre and size.
     """
     if not isinstance(traj, Trajectory):
         raise InvalidInput(f"`traj` must be a Trajectory, got {type(traj).__name__}")
     terrain = traj.scene.get("terrain", {})
-    kind = terrain.get("type", "flat")
-    if kind != "flat":
-        raise InvalidInput(f"scene terrain of type {kind!r} has no obstacle form here; pass "
-                           "`obstacles` explicitly")
-    out = [halfspace_obstacle("ground", normal=terrain.get("normal", (0.0, 0.0, 1.0)),
-                              height=float(terrain.get("height", 0.0)))]
+    if terrain.get("kind") == "terrain":
+        out = list(terrain_obstacles(Terrain.from_dict(terrain)))
+    else:
+        kind = terrain.get("type", "flat")
+        if kind != "flat":
+            raise InvalidInput(f"scene terrain of type {kind!r} has no obstacle form here; "
+                               "pass `obstacles` explicitly")
+        out = [halfspace_obstacle("ground", normal=terrain.get("normal", (0.0, 0.0, 1.0)),
+                                  height=float(terrain.get("height", 0.0)))]
     for k, box in enumerate(traj.scene.get("boxes", ()), start=1):
         if not isinstance(box, dict) or "center" not in box or "size" not in box:
             raise InvalidInput(f"scene box {k} must have a 'center' and a 'size', got {box!r}")
