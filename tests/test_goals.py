@@ -141,3 +141,31 @@ def test_a_control_guess_reaches_the_solver():
     assert np.all(np.abs(default.u[:, 0]) < 0.5)
     flat = _sliding_particle(control_guess=[3.0, 0.0])
     assert flat.control_guess.shape == (4, 2)
+
+
+def test_end_height_needs_the_contact_resting_at_the_height():
+    """The lowest point z_low = z - 0.02 of a foot under the second coordinate: ending at
+    z = 0.07 with gap 0 rests on a 5 cm top; at 0.05 it is on the ground below (2 cm off);
+    with gap 3 mm at T it is not resting."""
+    from tfcontact.ocp.goals import EndHeight
+
+    def lowest(q):
+        return q[1] - 0.02
+
+    goal = EndHeight(0, 0.05, 0.01, lowest)
+    t = np.linspace(0.0, 1.0, 3)
+
+    def motion(z_end, gap_end):
+        return Motion(t=t, q=np.array([[0.0, 0.3], [0.5, 0.4], [1.0, z_end]]),
+                      gaps=np.array([[0.0], [0.1], [gap_end]]), names=("x", "z"))
+
+    on_top = goal.check(motion(0.07, 0.0))
+    assert on_top.passed and on_top.value == pytest.approx(0.0, abs=1e-15)
+    below = goal.check(motion(0.05, 0.0))
+    assert not below.passed and below.value == pytest.approx(0.02)
+    assert not goal.check(motion(0.07, 0.003)).passed
+    assert check_goals([goal], motion(0.05, 0.0)).status == "goal_missed"
+    with pytest.raises(InvalidInput, match="`lowest` must be a function"):
+        EndHeight(0, 0.05, 0.01, 0.3)
+    with pytest.raises(InvalidInput, match="Clearance names contact 1"):
+        EndHeight(1, 0.05, 0.01, lowest).validate(("x", "z"), 1)

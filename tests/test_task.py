@@ -278,3 +278,176 @@ def test_top_level_plan_takes_tasks_and_refuses_other_things(tmp_path):
     with pytest.raises(InvalidInput, match="must be a ContactProblem, a Task or a task file"):
         tfcontact.plan(42)
     assert tfcontact.Task is Task and tfcontact.load_task is load_task
+
+
+# ----------------------------------------------------------------------------- terrain
+
+HOPPER_STEP = """
+name = "hop-up"
+horizon = 1.0
+n_intervals = 10
+[robot]
+source = "hopper"
+base = "planar"
+[[contacts]]
+frame = "foot"
+radius = 0.02
+[terrain]
+smoothing = 0.004
+[[terrain.primitives]]
+kind = "plane"
+friction = 0.6
+[[terrain.primitives]]
+kind = "box"
+x = [0.45, inf]
+top = 0.05
+rounding = 0.01
+friction = 0.6
+[[terrain.primitives]]
+kind = "box"
+x = [5.0, 6.0]
+top = 0.3
+friction = 0.2
+[start]
+x = 0.1
+z = 0.52
+leg_joint = 0.5
+[[waypoints]]
+t = 1.0
+x = 0.7
+z = 0.57
+[goals]
+end = { x = 0.7 }
+end_height = { foot = 0.05 }
+"""
+
+
+@pytest.fixture
+def step_file(tmp_path: Path) -> Path:
+    path = tmp_path / "hop-up.toml"
+    path.write_text(HOPPER_STEP)
+    return path
+
+
+def test_a_terrain_of_primitives_is_read_from_the_task_file(step_file):
+    from tfcontact.robot import Box, Plane
+    from tfcontact.task import PrimitiveTerrain
+
+    terrain = load_task(step_file).terrain
+    assert isinstance(terrain, PrimitiveTerrain) and terrain.region is None
+    assert terrain.terrain.primitives == (
+        Plane(friction=0.6), Box(x=(0.45, float("inf")), top=0.05, rounding=0.01,
+                                 friction=0.6),
+        Box(x=(5.0, 6.0), top=0.3, friction=0.2))
+    assert terrain.terrain.smoothing == 0.004
+
+
+def test_the_contacts_model_what_they_reach_and_the_scene_keeps_it_all(step_file):
+    """The hopper's leg reaches 0.5 m (its stroke; no offsets): the base's x runs from 0.1
+    to 0.7, so the foot stays in x [-0.4, 1.2] and the far box (x 5-6, friction 0.2) is
+    not modelled; the omitted friction is the near surfaces' 0.6. The gaps: z - l - r over
+    the ground, z - l - r - 0.05 over the step (away from its rounded edge and farther
+    from the ground's corner than the smoothing)."""
+    from tfcontact.robot import Box, Plane, Region, Terrain
+    from tfcontact.task import contact_reach, task_region
+
+    task = load_task(step_file)
+    setup = build_task(task)
+    assert contact_reach(setup.robot, "foot") == pytest.approx(0.5)
+    region = task_region(task, setup.robot)
+    assert region == Region((-0.4, -0.5, -np.inf), (1.2, 0.5, 0.57 + 0.5))
+    assert setup.terrain == Terrain((Plane(friction=0.6), Box(
+        x=(0.45, np.inf), top=0.05, rounding=0.01, friction=0.6)), smoothing=0.004)
+    assert setup.scene == {"terrain": task.terrain.terrain.to_dict()}
+    assert setup.scene["terrain"]["kind"] == "terrain"
+    assert len(setup.scene["terrain"]["primitives"]) == 3
+    cls = setup.problem.system.cls
+    assert cls.q_names == ("x", "z", "pitch", "hip_joint", "leg_joint")
+    assert cls.contacts[0].mu == 0.6
+    gap = cls.function("gaps")
+    for x, z, leg, step in ((0.1, 0.52, 0.5, 0.0), (0.2, 0.6, 0.3, 0.0),
+                            (0.7, 0.57, 0.5, 0.05), (1.0, 0.9, 0.2, 0.05)):
+        assert float(gap([x, z, 0.0, 0.0, leg])) == pytest.approx(z - leg - 0.02 - step,
+                                                                  abs=1e-12)
+    # the foot swung forwards by the hip: at x + l sin(a), z - l cos(a) (a = pitch + hip)
+    a = 0.3
+    foot_x = 0.0 + 0.4 * np.sin(-a)  # +pitch swings a downward leg towards -x
+    assert foot_x < -0.1  # far from the step: the ground's gap
+    assert float(gap([0.0, 0.6, 0.1, 0.2, 0.4])) == pytest.approx(
+        0.6 - 0.4 * np.cos(a) - 0.02, abs=1e-12)
+    end = [g for g in setup.problem.goals if type(g).__name__ == "EndHeight"][0]
+    assert float(end.lowest(np.array([0.7, 0.57, 0.0, 0.0, 0.5]))) == pytest.approx(0.05)
+
+
+def test_a_task_region_keeps_only_its_surfaces(step_file):
+    """A region over the far box alone (the foot's centre above 0.25 m: the ground out of
+    reach): the box's friction 0.2, its top as the gap's."""
+    path = _edited(step_file, "smoothing = 0.004",
+                   "smoothing = 0.004\nregion = { lower = [5.2, -1, 0.25], upper = [5.8, 1, 2] }")
+    path = _edited(path, "x = 0.1\nz = 0.52", "x = 5.5\nz = 0.82")
+    path = _edited(path, "x = 0.7\nz = 0.57", "x = 5.5\nz = 0.82")
+    path = _edited(path, "end = { x = 0.7 }", "end = { x = 5.5 }")
+    setup = build_task(load_task(path))
+    assert [p.top for p in setup.terrain.primitives] == [0.3]
+    cls = setup.problem.system.cls
+    assert cls.contacts[0].mu == 0.2
+    assert float(cls.function("gaps")([5.5, 0.9, 0.0, 0.0, 0.5])) == \
+        pytest.approx(0.9 - 0.5 - 0.02 - 0.3, abs=1e-12)
+
+
+def test_an_omitted_friction_over_surfaces_of_different_friction_is_refused(step_file):
+    path = _edited(step_file, "top = 0.05\nrounding = 0.01\nfriction = 0.6",
+                   "top = 0.05\nrounding = 0.01\nfriction = 0.9")
+    with pytest.raises(InvalidInput, match=r"`contacts\[foot\].friction` is omitted, but the "
+                                           r"surfaces it can reach have different friction "
+                                           r"coefficients \[0.6, 0.9\]"):
+        build_task(load_task(path))
+    own = _edited(path, "radius = 0.02", "radius = 0.02\nfriction = 0.7")
+    assert build_task(load_task(own)).problem.system.cls.contacts[0].mu == 0.7
+
+
+def test_a_plane_only_terrain_keeps_the_flat_scene(tmp_path):
+    """One plane as a primitive (height 0.1 at x = 0, slope 0.1): the flat form, its height
+    the offset along the unit normal, n_z 0.1 = 0.1 / sqrt(1.01)."""
+    from tfcontact.task import PrimitiveTerrain
+
+    text = TASK_TOML.replace("[start]", '[terrain]\n[[terrain.primitives]]\nkind = "plane"\n'
+                                        "height = 0.1\nslope = [0.1, 0.0]\n[start]")
+    task = task_from_dict(__import__("tomllib").loads(text))
+    assert isinstance(task.terrain, PrimitiveTerrain)
+    n = np.array([-0.1, 0.0, 1.0]) / np.sqrt(1.01)
+    scene = task.terrain.to_dict()
+    assert scene["type"] == "flat"
+    assert scene["height"] == pytest.approx(0.1 / np.sqrt(1.01), abs=1e-15)
+    assert scene["normal"] == pytest.approx(n.tolist(), abs=1e-15)
+
+
+@pytest.mark.parametrize(("old", "new", "message"), [
+    ('kind = "box"\nx = [0.45, inf]', 'kind = "stair"\nx = [0.45, inf]',
+     r"`terrain.primitives\[1\].kind` must be one of plane, box, hole, got 'stair'"),
+    ("top = 0.05", "topp = 0.05", r"`terrain.primitives\[1\]` has unknown keys \['topp'\]"),
+    ("x = [5.0, 6.0]", "x = [6.0, 5.0]",
+     r"`terrain.primitives\[2\]` \(box\): `x` must have lo < hi"),
+    ("smoothing = 0.004", "smoothing = 0.004\nheight = 0.1",
+     r"`terrain` has both a plane's height/normal and primitives"),
+    ("smoothing = 0.004", "smoothing = -1.0", r"`terrain`: `smoothing` must be >= 0"),
+    ("smoothing = 0.004", "smoothing = 0.004\nregion = { lower = [0, 0, 0] }",
+     r"`terrain.region` lacks \['upper'\]"),
+    ("end_height = { foot = 0.05 }", "end_height = { toe = 0.05 }",
+     r"`goals.end_height` names \['toe'\], which are not contacts"),
+])
+def test_terrain_errors_name_the_field(step_file, old, new, message):
+    with pytest.raises(InvalidInput, match=message):
+        build_task(load_task(_edited(step_file, old, new)))
+
+
+def test_a_flat_terrain_table_without_primitives_stays_a_plane(task_file):
+    from tfcontact.task import PlaneTerrain
+
+    path = _edited(task_file, "[start]", "[terrain]\nheight = -0.01\n[start]")
+    task = load_task(path)
+    assert task.terrain == PlaneTerrain(height=-0.01)
+    assert build_task(task).scene == {"terrain": {"type": "flat", "height": -0.01,
+                                                  "normal": [0.0, 0.0, 1.0]}}
+    with pytest.raises(InvalidInput, match=r"`terrain` has \['smoothing'\] but no primitives"):
+        load_task(_edited(path, "height = -0.01", "smoothing = 0.01"))

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import abc
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -199,6 +199,51 @@ class LiftOffs(Goal):
                          f"times contact {self.contact} rises above {self.height:g} m from "
                          "the ground", float(rises), float(self.count),
                          bool(rises >= self.count), GOAL_MISSED)
+
+
+@dataclass(frozen=True, eq=False)
+class EndHeight(Goal):
+    """Contact `contact` ends resting on a surface at height `height` [m]: its gap at T at
+    most `touch` [m] and the lowest point of its sphere within `tolerance` of `height`
+    (|z_low(T) - height| <= tolerance). A foot on a step's top, not on the ground before
+    the step nor against its face, whose gaps are as small.
+
+    Args:
+        contact: the contact's index.
+        height: the surface's height [m] (a horizontal top: a step, a platform).
+        tolerance: [m].
+        lowest: q -> z_low(q), the height of the contact sphere's lowest point [m] (its
+            centre's z minus its radius), e.g. a CasADi Function of q.
+        touch: the largest gap at T that counts as resting [m].
+    """
+
+    contact: int
+    height: float
+    tolerance: float
+    lowest: Callable[[np.ndarray], object]
+    touch: float = 1e-3
+
+    def __post_init__(self) -> None:
+        _finite(self.height, "height")
+        _finite(self.tolerance, "tolerance", positive=True)
+        _finite(self.touch, "touch", positive=True)
+        if not callable(self.lowest):
+            raise InvalidInput("`lowest` must be a function q -> height of the contact's "
+                               f"lowest point [m], got {self.lowest!r}")
+
+    def validate(self, names: Sequence[str], n_contacts: int) -> None:
+        Clearance(self.contact, 1.0).validate(names, n_contacts)
+
+    def check(self, motion: Motion) -> GoalCheck:
+        z_low = float(self.lowest(motion.q[-1]))
+        gap = float(motion.gaps[-1, self.contact])
+        miss = abs(z_low - self.height)
+        resting = gap <= self.touch
+        return GoalCheck(f"end height contact {self.contact}",
+                         f"|z_low(T) - {self.height:g}| of contact {self.contact} (ends at "
+                         f"{z_low:.4g} m, gap {gap:.2g} m, resting if <= {self.touch:g})",
+                         float(miss), self.tolerance,
+                         bool(miss <= self.tolerance and resting), GOAL_MISSED)
 
 
 @dataclass(frozen=True)

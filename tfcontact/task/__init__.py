@@ -5,8 +5,20 @@ solver preset; `build_task` turns it into the contact problem that `solve_contac
     tfcontact plan path/to/task.toml --out DIR
 """
 
-from tfcontact.task.build import TaskSetup, build_task, coordinate_names
-from tfcontact.task.files import SHIPPED, load_task, shipped_tasks, task_from_dict
+from tfcontact.task.build import (
+    TaskSetup,
+    build_task,
+    contact_reach,
+    coordinate_names,
+    task_region,
+)
+from tfcontact.task.files import (
+    SHIPPED,
+    load_task,
+    shipped_tasks,
+    task_from_dict,
+    terrain_from_dict,
+)
 from tfcontact.task.presets import SOLVER_PRESETS
 from tfcontact.task.solve import plan
 from tfcontact.task.spec import (
@@ -14,6 +26,7 @@ from tfcontact.task.spec import (
     Costs,
     Goals,
     PlaneTerrain,
+    PrimitiveTerrain,
     RobotEntry,
     Task,
     Waypoint,
@@ -26,14 +39,18 @@ __all__ = [
     "Costs",
     "Goals",
     "PlaneTerrain",
+    "PrimitiveTerrain",
     "RobotEntry",
     "Task",
     "TaskSetup",
     "Waypoint",
     "build_task",
+    "contact_reach",
     "coordinate_names",
     "load_task",
     "plan",
     "shipped_tasks",
     "task_from_dict",
+    "task_region",
+    "terrain_from_dict",
 ]

@@ -1,9 +1,17 @@
 """From a `Task` to what `solve_contact` solves: robot, CLS, time-freezing system,
-`ContactProblem` (tracking costs, bounds, no-slip path constraints, goals) and options."""
+`ContactProblem` (tracking costs, bounds, no-slip path constraints, goals) and options.
+
+A terrain of primitives is modelled where the contacts can be: `task_region` gives the
+box of the contact centres (the task's own `[terrain] region`, or the base's range
+widened by each contact's reach), and the contacts' gaps see only
+`Terrain.relevant_to(region, margin=largest contact radius)`. A contact without its own
+friction takes the friction of those surfaces.
+"""
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -11,22 +19,25 @@ import casadi as ca
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from tfcontact.errors import InvalidInput
-from tfcontact.task.spec import Task
+from tfcontact.errors import IncompatibleOptions, InvalidInput
+from tfcontact.robot.terrain import Region, Terrain
+from tfcontact.task.spec import PlaneTerrain, Task
 
 UNBOUNDED = 1e20  # IPOPT's infinity: a URDF's 1.8e308 "no limit" means none
 
 
 @dataclass(frozen=True)
 class TaskSetup:
-    """A built task: the loaded robot, the `ContactProblem`, the solver options and the
-    scene description stored in the trajectory's sidecar."""
+    """A built task: the loaded robot, the `ContactProblem`, the solver options, the
+    scene description stored in the trajectory's sidecar, and the terrain the contacts'
+    gaps model (a `tfcontact.robot.Ground` or the relevant part of a `Terrain`)."""
 
     task: Task
     robot: Any
     problem: Any
     options: Any
     scene: dict
+    terrain: Any = None
 
 
 def coordinate_names(robot: Any) -> tuple[list[str], list[str]]:
@@ -56,7 +67,8 @@ def build_task(task: Task) -> TaskSetup:
     Raises:
         InvalidInput: a field naming a coordinate, joint or frame the robot has not, a
             start with a contact below the terrain, an actuated joint without an effort
-            limit (neither in the URDF nor in `effort`).
+            limit (neither in the URDF nor in `effort`), a contact without friction of
+            its own that can reach surfaces of different friction.
         RobotLoadError, InvalidRobotModel, FrameNotFound: from `load_robot`.
     """
     from tfcontact.ocp import Constraint
@@ -77,15 +89,22 @@ def build_task(task: Task) -> TaskSetup:
     if unknown:
         raise InvalidInput(f"`actuated` names {unknown}, which are not joints of the model; "
                            f"its joints: {joints}")
-    ground = Ground(height=task.terrain.height, normal=task.terrain.normal)
-    frictional = any(c.friction > 0 for c in task.contacts)
+    if isinstance(task.terrain, PlaneTerrain):
+        ground = Ground(height=task.terrain.height, normal=task.terrain.normal)
+        frictions = [0.0 if c.friction is None else c.friction for c in task.contacts]
+    else:
+        ground = task.terrain.terrain.relevant_to(
+            task_region(task, robot), margin=max(c.radius for c in task.contacts))
+        frictions = [_terrain_friction(ground, c.frame) if c.friction is None
+                     else c.friction for c in task.contacts]
+    frictional = any(mu > 0 for mu in frictions)
     plain = from_robot(robot, ground, mu=1.0 if frictional else 0.0, a_n=task.a_n,
                        actuated=actuated)
     # from_robot gives every contact the same mu; each contact takes its own here.
     contacts = tuple(
-        dataclasses.replace(c, mu=entry.friction, restitution=entry.restitution,
-                            tangents=c.tangents if entry.friction > 0 else None)
-        for c, entry in zip(plain.contacts, task.contacts, strict=True))
+        dataclasses.replace(c, mu=mu, restitution=entry.restitution,
+                            tangents=c.tangents if mu > 0 else None)
+        for c, entry, mu in zip(plain.contacts, task.contacts, frictions, strict=True))
     cls = dataclasses.replace(
         plain, contacts=contacts, q_names=tuple(names),
         v_names=tuple(f"v_{n}" for n in names),
@@ -122,7 +141,7 @@ def build_task(task: Task) -> TaskSetup:
     rows = []
     for c, entry in zip(cls.contacts, task.contacts, strict=True):
         if entry.no_slip:
-            if entry.friction == 0.0:
+            if c.mu == 0.0:
                 raise InvalidInput(f"`contacts[{entry.frame}].no_slip` needs friction > 0 "
                                    "(a frictionless contact has no tangential force to stop "
                                    "a slide)")
@@ -141,10 +160,77 @@ def build_task(task: Task) -> TaskSetup:
         u_lower=-u_bound, u_upper=u_bound,
         q_lower=lower[:len(names)], q_upper=upper[:len(names)],
         v_lower=lower[len(names):], v_upper=upper[len(names):],
-        path=path, goals=_goals(task), guess=guess)
+        path=path, goals=_goals(task, robot, cls), guess=guess)
     options = SOLVER_PRESETS[task.solver]()
     scene = {"terrain": task.terrain.to_dict()}
-    return TaskSetup(task, robot, problem, options, scene)
+    return TaskSetup(task, robot, problem, options, scene, ground)
+
+
+def contact_reach(robot: Any, frame: str) -> float:
+    """An upper bound of the distance from the base to the centre of the contact on
+    `frame` [m]: the lengths of the joint offsets along the chain from the base (the
+    floating/planar root joint, or the world for a fixed base) to the frame, plus each
+    prismatic joint's largest |position|. Revolute joints only turn the offsets.
+    Infinite for a prismatic joint without limits."""
+    model = robot.model
+    f = model.frames[model.getFrameId(frame)]
+    reach = float(np.linalg.norm(f.placement.translation))
+    j = f.parentJoint
+    while j > 0 and model.names[j] != "root_joint":
+        joint = model.joints[j]
+        reach += float(np.linalg.norm(model.jointPlacements[j].translation))
+        if "Prismatic" in joint.shortname():
+            i = joint.idx_q
+            stroke = max(abs(float(model.lowerPositionLimit[i])),
+                         abs(float(model.upperPositionLimit[i])))
+            reach += stroke if stroke < UNBOUNDED else math.inf
+        j = model.parents[j]
+    return reach
+
+
+def task_region(task: Task, robot: Any) -> Region:
+    """The box where the task's contact centres stay [m]: `task.terrain.region` if given;
+    else the base's range widened on every side by the largest `contact_reach`.
+
+    The base's range along x, y, z: its `bounds` where both are finite (hard limits of
+    the plan), else the span of its start, way points and `goals.end` values (the plan
+    is pulled along them; it may leave that span by less than a leg's reach, which the
+    widening covers). A base axis the model has not (a planar base's y) stays at 0; a
+    fixed base sits at the origin. Below the base nothing is cut (z from -inf): every
+    surface under the robot stays.
+    """
+    if not isinstance(task.terrain, PlaneTerrain) and task.terrain.region is not None:
+        return task.terrain.region
+    from tfcontact.robot import BASE_COORDINATES
+
+    reach = max(contact_reach(robot, c.frame) for c in task.contacts)
+    base = [n for n, _ in BASE_COORDINATES.get(robot.spec.base, ())]
+    lower, upper = [], []
+    for axis in ("x", "y", "z"):
+        if axis in task.bounds and all(abs(b) < UNBOUNDED for b in task.bounds[axis]):
+            low, high = task.bounds[axis]
+        elif axis in base:
+            values = [task.start.get(axis, 0.0)]
+            values += [w.values[axis] for w in task.waypoints if axis in w.values]
+            values += [task.goals.end[axis]] if axis in task.goals.end else []
+            low, high = min(values), max(values)
+        else:
+            low = high = 0.0
+        lower.append(low - reach)
+        upper.append(high + reach)
+    lower[2] = -math.inf
+    return Region(tuple(lower), tuple(upper))
+
+
+def _terrain_friction(terrain: Terrain, frame: str) -> float:
+    try:
+        return terrain.friction
+    except IncompatibleOptions:
+        values = sorted({p.friction for p in terrain.primitives})
+        raise InvalidInput(
+            f"`contacts[{frame}].friction` is omitted, but the surfaces it can reach have "
+            f"different friction coefficients {values}; give the contact its own friction, "
+            "or a `[terrain] region` that keeps only surfaces of one friction") from None
 
 
 def _v_index(robot: Any, joint: str) -> int:
@@ -164,10 +250,11 @@ def _check_names(task: Task, state_names: list[str], frames: list[str]) -> None:
         if unknown:
             raise InvalidInput(f"`{where}` names {unknown}, which the robot has not; its "
                                f"names: {', '.join(allowed)}")
-    unknown = [k for k in task.goals.lift_offs if k not in frames]
-    if unknown:
-        raise InvalidInput(f"`goals.lift_offs` names {unknown}, which are not contacts; "
-                           f"the contacts: {frames}")
+    for where in ("lift_offs", "end_height"):
+        unknown = [k for k in getattr(task.goals, where) if k not in frames]
+        if unknown:
+            raise InvalidInput(f"`goals.{where}` names {unknown}, which are not contacts; "
+                               f"the contacts: {frames}")
 
 
 def _start(task: Task, robot: Any, names: list[str]) -> np.ndarray:
@@ -237,14 +324,20 @@ def _effort(task: Task, robot: Any, actuated: list[str]) -> np.ndarray:
     return np.asarray(bounds)
 
 
-def _goals(task: Task) -> tuple:
-    from tfcontact.ocp.goals import EndPosition, LiftOffs, Moves, Progress
+def _goals(task: Task, robot: Any, cls: Any) -> tuple:
+    from tfcontact.ocp.goals import EndHeight, EndPosition, LiftOffs, Moves, Progress
 
     goals: list = [EndPosition(k, v, task.goals.tolerance) for k, v in task.goals.end.items()]
     goals += [Progress(k, v) for k, v in task.goals.progress.items()]
     frames = [c.frame for c in task.contacts]
     goals += [LiftOffs(frames.index(k), n, task.goals.lift_height)
               for k, n in task.goals.lift_offs.items()]
+    for frame, height in task.goals.end_height.items():
+        contact = task.contacts[frames.index(frame)]
+        lowest = ca.Function(f"z_low_{frame}", [cls.q],
+                             [robot.twin.frame_position(frame)[2] - contact.radius])
+        goals.append(EndHeight(frames.index(frame), height, task.goals.height_tolerance,
+                               lowest))
     if task.goals.moves:
         goals.append(Moves())
     return tuple(goals)

@@ -21,6 +21,26 @@ tfcontact (`shipped_tasks`).
     lift_offs = { foot = 1 }
 
 A relative URDF path is read relative to the task file's folder first.
+
+The terrain is one plane (`[terrain]` with `height` and `normal`, default flat at 0) or
+primitives (`tfcontact.robot.Terrain`), each with the fields of its robot-layer class
+(ranges as [lo, hi], `inf` for an open end, y omitted in a planar scene):
+
+    [terrain]
+    smoothing = 0.005                                   # [m], joins the solids C1
+    region = { lower = [-0.5, -1, -1], upper = [1.5, 1, 1.5] }   # optional
+    [[terrain.primitives]]
+    kind = "plane"            # height, normal or slope = [dz/dx, dz/dy], friction
+    friction = 0.8
+    [[terrain.primitives]]
+    kind = "box"              # x, top, y, rounding, friction: a step or platform
+    x = [0.6, inf]
+    top = 0.05
+    rounding = 0.01
+    friction = 0.8
+    [[terrain.primitives]]
+    kind = "hole"             # x, y, rounding, floor, friction
+    x = [1.2, 1.4]
 """
 
 from __future__ import annotations
@@ -30,12 +50,14 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from tfcontact.errors import InvalidInput
+from tfcontact.errors import IncompatibleOptions, InvalidInput
+from tfcontact.robot.terrain import Box, Hole, Plane, Region, Terrain
 from tfcontact.task.spec import (
     ContactEntry,
     Costs,
     Goals,
     PlaneTerrain,
+    PrimitiveTerrain,
     RobotEntry,
     Task,
     Waypoint,
@@ -50,7 +72,14 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain"}
 _TERRAIN = {"height", "normal"}
-_GOALS = {"end", "tolerance", "progress", "lift_offs", "lift_height", "moves"}
+_PRIMITIVE_TERRAIN = {"primitives", "smoothing", "region"}
+_PRIMITIVES: dict[str, tuple[type, set[str], tuple[str, ...]]] = {
+    "plane": (Plane, {"kind", "height", "normal", "slope", "friction"}, ()),
+    "box": (Box, {"kind", "x", "top", "y", "rounding", "friction"}, ("x", "top")),
+    "hole": (Hole, {"kind", "x", "y", "rounding", "floor", "friction"}, ("x",)),
+}
+_GOALS = {"end", "tolerance", "progress", "lift_offs", "lift_height", "moves", "end_height",
+          "height_tolerance"}
 _COSTS = {"tracking", "terminal", "control"}
 
 
@@ -108,15 +137,74 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         if isinstance(actuated, list) else actuated,
         effort=top.get("effort", {}),
         bounds=top.get("bounds", {}),
-        terrain=PlaneTerrain(**{k: tuple(v) if k == "normal" and isinstance(v, list) else v
-                                for k, v in _table(top.get("terrain", {}), "terrain",
-                                                   _TERRAIN).items()}),
+        terrain=terrain_from_dict(top.get("terrain", {})),
         waypoints=tuple(parsed_waypoints),
         goals=Goals(**_table(top.get("goals", {}), "goals", _GOALS)),
         costs=Costs(**_table(top.get("costs", {}), "costs", _COSTS)),
         solver=top.get("solver", "default"), guess=top.get("guess", "start"),
         a_n=top.get("a_n", 100.0), gap_scale=top.get("gap_scale", 30.0),
     )
+
+
+def terrain_from_dict(data: object) -> PlaneTerrain | PrimitiveTerrain:
+    """The terrain of a task file's `[terrain]` table: one plane (`height`, `normal`) or
+    `primitives` (module docstring).
+
+    Raises:
+        InvalidInput: unknown keys, both forms at once, a bad primitive (its index named).
+    """
+    if not isinstance(data, Mapping) or "primitives" not in data:
+        table = _table(data, "terrain", _TERRAIN | _PRIMITIVE_TERRAIN)
+        extra = sorted(set(table) & (_PRIMITIVE_TERRAIN - {"primitives"}))
+        if extra:
+            raise InvalidInput(f"`terrain` has {extra} but no primitives; add "
+                               "[[terrain.primitives]] or drop them")
+        return PlaneTerrain(**{k: tuple(v) if k == "normal" and isinstance(v, list) else v
+                               for k, v in table.items()})
+    if set(data) & _TERRAIN:
+        raise InvalidInput("`terrain` has both a plane's height/normal and primitives; give "
+                           "the plane as [[terrain.primitives]] kind = \"plane\"")
+    table = _table(data, "terrain", _PRIMITIVE_TERRAIN)
+    items = table["primitives"]
+    if not isinstance(items, list) or not items:
+        raise InvalidInput("`terrain.primitives` must be an array of tables: "
+                           "[[terrain.primitives]] with kind = \"plane\", \"box\" or \"hole\"")
+    primitives = [_primitive(item, f"terrain.primitives[{i}]")
+                  for i, item in enumerate(items)]
+    region = None
+    if "region" in table:
+        bounds = _table(table["region"], "terrain.region", {"lower", "upper"},
+                        ("lower", "upper"))
+        try:
+            region = Region(**{k: tuple(v) if isinstance(v, list) else v
+                               for k, v in bounds.items()})
+        except InvalidInput as error:
+            raise InvalidInput(f"`terrain.region`: {error}") from None
+    try:
+        terrain = Terrain(tuple(primitives), smoothing=table.get("smoothing", 0.0))
+    except (InvalidInput, IncompatibleOptions) as error:
+        raise InvalidInput(f"`terrain`: {error}") from None
+    return PrimitiveTerrain(terrain, region)
+
+
+def _primitive(item: object, where: str) -> Plane | Box | Hole:
+    kind = item.get("kind") if isinstance(item, Mapping) else None
+    if kind not in _PRIMITIVES:
+        raise InvalidInput(f"`{where}.kind` must be one of {', '.join(_PRIMITIVES)}, got "
+                           f"{kind!r}")
+    cls, keys, required = _PRIMITIVES[kind]
+    fields = _table(item, where, keys, required)
+    fields.pop("kind")
+    fields = {k: tuple(v) if isinstance(v, list) else v for k, v in fields.items()}
+    try:
+        if "slope" in fields:
+            if "normal" in fields:
+                raise InvalidInput("give `normal` or `slope`, not both")
+            return Plane.sloped(fields.get("height", 0.0), fields["slope"],
+                                friction=fields.get("friction", 0.0))
+        return cls(**fields)
+    except (InvalidInput, IncompatibleOptions) as error:
+        raise InvalidInput(f"`{where}` ({kind}): {error}") from None
 
 
 def load_task(path: str | Path) -> Task:

@@ -17,6 +17,7 @@ from typing import Any
 
 from tfcontact.errors import InvalidInput, positive_int
 from tfcontact.robot.spec import BASES
+from tfcontact.robot.terrain import Plane, Region, Terrain
 
 GUESSES = ("start", "reference")
 """The initial guesses a task can ask for (`Task.guess`)."""
@@ -79,7 +80,9 @@ class ContactEntry:
     Args:
         frame: a frame of the robot model (a link or a fixed frame).
         radius: the sphere's radius [m].
-        friction: Coulomb coefficient mu [-] (0: frictionless).
+        friction: Coulomb coefficient mu [-] (0: frictionless); None (omitted): the
+            terrain's, that is the friction of the surfaces the contact can reach (0 on
+            a `PlaneTerrain`).
         restitution: Newton's e [-]; e > 0 needs a single frictionless contact (elastic
             time-freezing).
         no_slip: while the sphere touches, it may not slide (v_t^2 <= K gap, with
@@ -90,7 +93,7 @@ class ContactEntry:
 
     frame: str
     radius: float
-    friction: float = 0.0
+    friction: float | None = None
     restitution: float = 0.0
     no_slip: bool = False
     no_slip_gain: float = 100.0
@@ -101,8 +104,9 @@ class ContactEntry:
         where = f"contacts[{self.frame}]"
         object.__setattr__(self, "radius", finite(self.radius, f"{where}.radius", low=0.0,
                                                   strict=True, unit="m"))
-        object.__setattr__(self, "friction", finite(self.friction, f"{where}.friction",
-                                                    low=0.0))
+        if self.friction is not None:
+            object.__setattr__(self, "friction", finite(self.friction, f"{where}.friction",
+                                                        low=0.0))
         e = finite(self.restitution, f"{where}.restitution", low=0.0)
         if e > 1.0:
             raise InvalidInput(f"`{where}.restitution` must lie in [0, 1], got {e!r}")
@@ -141,6 +145,51 @@ class PlaneTerrain:
 
 
 @dataclass(frozen=True)
+class PrimitiveTerrain:
+    """Terrain of primitives: sloped planes, steps and platforms (boxes), holes, each with
+    its own friction (`tfcontact.robot.Terrain`), and where the contacts stay.
+
+    The contacts' gaps model only the primitives a contact can reach
+    (`Terrain.relevant_to(region)`); the sidecar's scene, its drawing and the collision
+    check of the whole robot keep the whole terrain (a knee can hit a step the foot
+    never reaches).
+
+    Args:
+        terrain: the `tfcontact.robot.Terrain`.
+        region: the box where the contact spheres' centres stay (`tfcontact.robot.Region`
+            [m]); None: derived from the task by `build_task` (`task_region`: the base's
+            range, from its finite `bounds` or else from its start, way points and end
+            goals, widened by each contact's reach from the base).
+    """
+
+    terrain: Terrain
+    region: Region | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.terrain, Terrain):
+            raise InvalidInput("`terrain` must be a tfcontact.robot.Terrain, e.g. "
+                               "Terrain((Plane(), Box(x=(0.6, inf), top=0.05)))")
+        if self.region is not None and not isinstance(self.region, Region):
+            raise InvalidInput("`terrain.region` must be a tfcontact.robot.Region: "
+                               "region = { lower = [x, y, z], upper = [x, y, z] }")
+
+    @property
+    def flat(self) -> bool:
+        """One plane and nothing else: saved in the flat scene form, as a PlaneTerrain."""
+        return len(self.terrain.primitives) == 1 and isinstance(self.terrain.primitives[0],
+                                                                 Plane)
+
+    def to_dict(self) -> dict:
+        """The scene's terrain: `Terrain.to_dict()` ("kind": "terrain"), or the flat form
+        {"type": "flat", "height": offset along the normal, "normal"} of one plane."""
+        if self.flat:
+            plane = self.terrain.primitives[0]
+            return {"type": "flat", "height": plane.normal[2] * plane.height,
+                    "normal": list(plane.normal)}
+        return self.terrain.to_dict()
+
+
+@dataclass(frozen=True)
 class Waypoint:
     """Where the plan should be at physical time `time`: some named coordinates or
     velocities ({name: value}); the others are free there."""
@@ -171,6 +220,11 @@ class Goals:
             above `lift_height`.
         lift_height: [m].
         moves: the plan must move (a do-nothing plan fails).
+        end_height: contacts that must end resting on a surface at a height, {frame:
+            height [m]}: the gap at T below 1 mm and the sphere's lowest point within
+            `height_tolerance` of the height (a foot on a step, not on the ground before
+            it or against its face).
+        height_tolerance: of the end heights [m].
     """
 
     end: Mapping[str, float] = field(default_factory=dict)
@@ -179,6 +233,8 @@ class Goals:
     lift_offs: Mapping[str, int] = field(default_factory=dict)
     lift_height: float = 0.05
     moves: bool = True
+    end_height: Mapping[str, float] = field(default_factory=dict)
+    height_tolerance: float = 0.01
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "end", _frozen(
@@ -197,6 +253,11 @@ class Goals:
                                                        low=0.0, strict=True, unit="m"))
         if not isinstance(self.moves, bool):
             raise InvalidInput(f"`goals.moves` must be true or false, got {self.moves!r}")
+        object.__setattr__(self, "end_height", _frozen(
+            {k: finite(v, f"goals.end_height.{k}", unit="m") for k, v in
+             _names(self.end_height, "goals.end_height").items()}))
+        object.__setattr__(self, "height_tolerance", finite(
+            self.height_tolerance, "goals.height_tolerance", low=0.0, strict=True, unit="m"))
 
 
 @dataclass(frozen=True)
@@ -242,7 +303,8 @@ class Task:
             (needed where the URDF gives none).
         bounds: {name: [low, high]} for coordinates and velocities, replacing the URDF's
             joint position limits.
-        terrain: the ground (`PlaneTerrain`).
+        terrain: the ground: a `PlaneTerrain` (one plane) or a `PrimitiveTerrain` (planes,
+            boxes, holes).
         waypoints: `Waypoint`s, in increasing time within the horizon.
         goals, costs: `Goals`, `Costs`.
         solver: a preset of `tfcontact.task.SOLVER_PRESETS`.
@@ -264,7 +326,7 @@ class Task:
     actuated: tuple[str, ...] | None = None
     effort: Mapping[str, float] = field(default_factory=dict)
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
-    terrain: PlaneTerrain = field(default_factory=PlaneTerrain)
+    terrain: PlaneTerrain | PrimitiveTerrain = field(default_factory=PlaneTerrain)
     waypoints: tuple[Waypoint, ...] = ()
     goals: Goals = field(default_factory=Goals)
     costs: Costs = field(default_factory=Costs)
@@ -311,8 +373,9 @@ class Task:
                 raise InvalidInput(f"`bounds.{k}` must have low < high, got {list(pair)}")
             bounds[k] = (low, high)
         object.__setattr__(self, "bounds", _frozen(bounds))
-        if not isinstance(self.terrain, PlaneTerrain):
-            raise InvalidInput("`terrain` must be a PlaneTerrain ([terrain] height, normal)")
+        if not isinstance(self.terrain, PlaneTerrain | PrimitiveTerrain):
+            raise InvalidInput("`terrain` must be a PlaneTerrain ([terrain] height, normal) "
+                               "or a PrimitiveTerrain ([[terrain.primitives]])")
         waypoints = tuple(self.waypoints)
         times = [w.time for w in waypoints]
         if times != sorted(set(times)) or (times and times[-1] > self.horizon):
