@@ -41,6 +41,7 @@ import numpy as np
 
 from tfcontact.errors import InvalidInput, RobotLoadError, TfcontactError
 from tfcontact.robot.spec import BASE_COORDINATES
+from tfcontact.viz.labels import dof_units
 from tfcontact.viz.trajectory import Trajectory, physical_time
 
 GROUND_NORMAL = (0.0, 0.0, 1.0)
@@ -495,24 +496,6 @@ def file_sha256(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _dof_units(model: Any, base: str) -> list[tuple[str, str]]:
-    """(joint, unit of the coordinate) per velocity entry of a Pinocchio model."""
-    out: list[tuple[str, str]] = []
-    for j in range(1, model.njoints):
-        joint, name = model.joints[j], model.names[j]
-        kind = joint.shortname()
-        if name == "root_joint" and base in BASE_COORDINATES:
-            units = [unit for _, unit in BASE_COORDINATES[base]]
-        elif "Prismatic" in kind or kind[:11] == "JointModelP" or "Translation" in kind:
-            units = ["m"] * joint.nv
-        elif ("Revolute" in kind or kind[:11] == "JointModelR" or "SphericalZYX" in kind):
-            units = ["rad"] * joint.nv
-        else:
-            units = ["-"] * joint.nv
-        out += [(name, unit) for unit in units]
-    return out
-
-
 def describe_robot(robot_spec: Any, cls: Any) -> dict[str, Any]:
     """The sidecar's `model`: the robot of a plan described without the repository.
 
@@ -542,7 +525,7 @@ def describe_robot(robot_spec: Any, cls: Any) -> dict[str, Any]:
         raise InvalidInput(f"the plan has {cls.n_q} coordinates but the robot `{spec.source}` "
                            f"({spec.base} base) has {model.nv}")
     locate, urdf = urdf_location(spec.source)
-    dofs = _dof_units(model, spec.base)
+    dofs = dof_units(model, spec.base)
     q0, v0, u0 = np.zeros(cls.n_q), np.zeros(cls.n_q), np.zeros(cls.n_u)
     forces = cls.function("forces")
     at_rest = np.asarray(forces(q0, v0, u0), dtype=float).ravel()
