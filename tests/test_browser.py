@@ -9,10 +9,17 @@ longer enable it by default. `--virtual-time-budget` lets the page run its scrip
 (including the asynchronous unpacking of the compressed page) before the screenshot.
 
 The screenshots are kept under `ci-artifacts/browser/` (gitignored) for inspection.
+
+The page's own controls (play/pause, time slider, physical-time readout) are driven by a
+script added to a copy of the page, acting as a user would (slide, click), and what the
+page showed is read back from `--dump-dom`.
 """
 
 from __future__ import annotations
 
+import html
+import json
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -94,3 +101,57 @@ def test_standalone_replay_draws_and_moves(tmp_path, compress):
     assert contact_mask(shots[0.5]).sum() > 20
     assert contact_mask(shots[0.2]).sum() == 0
     shutil.rmtree(tmp_path, ignore_errors=True)
+
+
+# A user's moves, scripted into a copy of the page: once the replay is ready, drag the time
+# slider to t = 0.5 s, press play, press pause; what the page showed after each step is
+# written to an attribute of <body> that `--dump-dom` prints.
+USER = """<script>
+(function () {
+  function run() {
+    if (document.body.getAttribute("data-tfcontact-ready") !== "1") {
+      setTimeout(run, 20);
+      return;
+    }
+    var slider = document.getElementById("tfcontact-time");
+    var readout = document.getElementById("tfcontact-readout");
+    var button = document.getElementById("tfcontact-play");
+    var seen = {bar: getComputedStyle(document.getElementById("tfcontact-controls")).display,
+                max: slider.max};
+    slider.value = "0.5";
+    slider.dispatchEvent(new Event("input", {bubbles: true}));
+    seen.slid = {readout: readout.textContent, animation: viewer.animator.time,
+                 playing: viewer.animator.playing, button: button.textContent};
+    button.click();
+    seen.play = {playing: viewer.animator.playing, button: button.textContent};
+    button.click();
+    seen.pause = {playing: viewer.animator.playing, button: button.textContent};
+    document.body.setAttribute("data-user", JSON.stringify(seen));
+  }
+  run();
+})();
+</script>
+"""
+
+
+@pytest.mark.parametrize("compress", [True, False], ids=["compressed", "plain"])
+def test_replay_controls_drive_the_physical_time(tmp_path, compress):
+    page = tmp_path / "hop.html"
+    # half speed: the slider and the readout are in physical time, the animation is not
+    replay(hop_trajectory(), html=page, robot=hopper_models(), speed=0.5, compress=compress)
+    scripted = tmp_path / "hop_user.html"
+    scripted.write_text(page.read_text(encoding="utf-8").replace("</body>", USER + "</body>"),
+                        encoding="utf-8")
+    cmd = [str(CHROMIUM), *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", "--dump-dom",
+           scripted.resolve().as_uri()]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
+    assert done.returncode == 0, done.stderr[-2000:]
+    found = re.search(r'data-user="([^"]*)"', done.stdout)
+    assert found, "the page never became ready: " + done.stderr[-2000:]
+    seen = json.loads(html.unescape(found.group(1)))
+    assert seen["bar"] == "flex" and float(seen["max"]) == pytest.approx(1.0)
+    assert seen["slid"]["readout"] == "t = 0.500 s"
+    assert seen["slid"]["animation"] == pytest.approx(1.0)  # 0.5 s of motion at half speed
+    assert seen["slid"]["playing"] is False and seen["slid"]["button"] == "play"
+    assert seen["play"] == {"playing": True, "button": "pause"}
+    assert seen["pause"] == {"playing": False, "button": "play"}

@@ -2,7 +2,8 @@
 
 The robot's visual geometry is drawn by `pinocchio.visualize.MeshcatVisualizer`
 (primitives as they are; mesh files, by default, re-meshed coarser by vertex clustering
-to keep the HTML small), the ground as a thin box, every contact candidate as two
+to keep the HTML small), the scene's terrain as boxes (`ground_boxes`: flat ground, sloped
+planes tilted, steps, holes as gaps in the ground), every contact candidate as two
 spheres (green: in contact, grey: free) and optionally the contact forces as arrows.
 The motion is a meshcat animation in physical time t (frozen pieces dropped,
 DESIGN.md 4.1), played at `speed` times real time.
@@ -12,9 +13,12 @@ The standalone page needs no server and no network: meshcat's viewer script
 synchronously from base64. By default both scripts are gzipped and base64-encoded in
 the page, and unpacked by the browser (DecompressionStream), which makes the page
 about three times smaller; `compress=False` inlines them as plain text. The page opens
-at the start of the animation and plays it once (the "Animations" panel replays it); a
-URL fragment `#t=0.35` instead shows the motion
-paused at physical time t = 0.35 s (used by the browser test, handy for reports).
+at the start of the animation and plays it once; a URL fragment `#t=0.35` instead shows
+the motion paused at physical time t = 0.35 s (used by the browser test, handy for
+reports). A bar at the bottom of the page (`controls`, plain HTML outside meshcat's
+menus) has a play/pause button, a time slider and a readout of the physical time t [s]
+(not the animation's own time, which runs at `speed`); they drive meshcat's animation
+(`viewer.animator`: `play`, `pause`, `seek`).
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ import numpy as np
 import pinocchio as pin
 
 from tfcontact.errors import InvalidInput
+from tfcontact.viz.terrain_view import DrawnBox, scene_terrain, terrain_boxes
 from tfcontact.viz.trajectory import Trajectory, load_trajectory, physical_time
 
 ROOT = "tfcontact"
@@ -38,6 +43,8 @@ CONTACT_ON_COLOR = 0x2CA02C  # green: gap <= contact_tol
 CONTACT_OFF_COLOR = 0xB0B0B0  # grey: free
 FORCE_COLOR = 0xD62728
 GROUND_COLOR = 0x8C8C8C
+#: Colours of the drawn terrain: the ground (planes), steps and platforms, hole floors.
+TERRAIN_COLORS = {"ground": GROUND_COLOR, "box": 0xA89A84, "floor": 0x5E5E5E}
 HOLE_COLOR = 0xC44E52  # translucent red: where a foot's centre may not go
 HOLE_WIDTH = 0.3  # [m] a hole's extent across the plane of motion (y), for drawing only
 
@@ -54,13 +61,16 @@ class RecordingWindow:
     `set_object` on a path replaces the earlier one, `delete` drops a subtree.
 
     Args:
-        fragment_time_offset: physical time [s] at animation time 0 (for `#t=`).
-        speed: playback rate [-] of the animation (for `#t=`).
+        fragment_time_offset: physical time [s] at animation time 0 (for `#t=` and the
+            time readout).
+        speed: playback rate [-] of the animation (for `#t=` and the time readout).
         compress: gzip + base64 the scripts, unpacked in the browser.
+        end_time: physical time [s] of the animation's end (the slider's maximum); None:
+            from the animation's duration, in the browser.
     """
 
     def __init__(self, *, fragment_time_offset: float = 0.0, speed: float = 1.0,
-                 compress: bool = False):
+                 compress: bool = False, end_time: float | None = None):
         from meshcat.servers.tree import SceneTree
 
         self._tree_factory = SceneTree
@@ -68,6 +78,7 @@ class RecordingWindow:
         self.fragment_time_offset = fragment_time_offset
         self.speed = speed
         self.compress = compress
+        self.end_time = end_time
 
     def send(self, command) -> None:
         import umsgpack
@@ -122,14 +133,20 @@ class RecordingWindow:
             raise InvalidInput(f"{js_path} contains `</script`: cannot inline it")
         commands = ",\n".join('"' + base64.b64encode(c).decode("ascii") + '"'
                                for c in self.commands())
-        viewer = (_VIEWER.replace("@T0@", repr(float(self.fragment_time_offset)))
+        t0 = float(self.fragment_time_offset)
+        t1 = None if self.end_time is None else float(self.end_time)
+        viewer = (_VIEWER.replace("@T0@", repr(t0))
+                  .replace("@T1@", "null" if t1 is None else repr(t1))
                   .replace("@SPEED@", repr(float(self.speed)))
                   .replace("@COMMANDS@", commands))
+        head = _HEAD + (_CONTROLS.replace("@T0@", repr(t0))
+                        .replace("@T1@", repr(t0 if t1 is None else t1))
+                        .replace("@READOUT@", f"t = {t0:.3f} s"))
         if not self.compress:
-            return _HEAD + f"<script>\n{main_js}\n</script>\n<script>{viewer}</script>\n" + _TAIL
+            return head + f"<script>\n{main_js}\n</script>\n<script>{viewer}</script>\n" + _TAIL
         packed = gzip.compress((main_js + "\n;\n" + viewer).encode("utf-8"), mtime=0)
         payload = base64.b64encode(packed).decode("ascii")
-        return _HEAD + _UNPACK.replace("@PAYLOAD@", payload) + _TAIL
+        return head + _UNPACK.replace("@PAYLOAD@", payload) + _TAIL
 
     # meshcat.Visualizer calls these on its window in some paths
     def open(self):
@@ -163,6 +180,25 @@ _TAIL = """</body>
 </html>
 """
 
+# The replay's own controls, outside meshcat's menus: plain markup (present before any
+# script runs, in the compressed page too), wired by the replay script. The slider's
+# value is the physical time t [s]. Placeholders: @T0@, @T1@, @READOUT@.
+_CONTROLS = """<style>
+#tfcontact-controls { position: fixed; left: 12px; bottom: 12px; display: flex;
+  align-items: center; gap: 10px; padding: 6px 10px; border-radius: 6px;
+  background: rgba(255, 255, 255, 0.85); font: 14px sans-serif; color: #222; z-index: 10; }
+#tfcontact-play { min-width: 4.5em; font: inherit; }
+#tfcontact-time { width: min(50vw, 480px); }
+#tfcontact-readout { font-variant-numeric: tabular-nums; min-width: 11em; }
+</style>
+<div id="tfcontact-controls">
+<button id="tfcontact-play" type="button" aria-label="play or pause the motion">pause</button>
+<input id="tfcontact-time" type="range" min="@T0@" max="@T1@" step="any" value="@T0@"
+ aria-label="physical time [s]">
+<output id="tfcontact-readout" for="tfcontact-time">@READOUT@</output>
+</div>
+"""
+
 # The replay script: meshcat scene commands (msgpack + base64) applied synchronously,
 # then the `#t=` fragment handler. Placeholders: @T0@, @SPEED@, @COMMANDS@.
 _VIEWER = """
@@ -170,7 +206,8 @@ _VIEWER = """
 var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
 var tfcontactReplay = {
   t0: @T0@,      // physical time [s] of animation time 0
-  speed: @SPEED@,    // animation seconds per physical second
+  t1: @T1@,      // physical time [s] of its end (null: from the animation's duration)
+  speed: @SPEED@,    // physical seconds per animation second
   commands: [
 @COMMANDS@
   ]
@@ -197,7 +234,60 @@ var tfcontactReplay = {
   }
   showFragmentTime();
   window.addEventListener("hashchange", showFragmentTime);
+  wireControls();
   document.body.setAttribute("data-tfcontact-ready", "1");
+
+  // The bar of _CONTROLS: play/pause, the slider and the readout, all in physical time.
+  function wireControls() {
+    var animator = viewer.animator, R = tfcontactReplay;
+    var button = document.getElementById("tfcontact-play");
+    var slider = document.getElementById("tfcontact-time");
+    var readout = document.getElementById("tfcontact-readout");
+    if (!button || !slider || !readout) return;
+    if (R.t1 === null) R.t1 = R.t0 + animator.duration * R.speed;
+    slider.min = R.t0;
+    slider.max = R.t1;
+    function physical(a) { return Math.min(Math.max(R.t0 + a * R.speed, R.t0), R.t1); }
+    function show(t) {
+      readout.textContent = "t = " + t.toFixed(3) + " s";
+      readout.setAttribute("data-t", String(t));
+    }
+    function sync() {
+      var t = physical(animator.time);
+      slider.value = t;
+      show(t);
+      button.textContent = animator.playing ? "pause" : "play";
+      button.setAttribute("aria-pressed", animator.playing ? "true" : "false");
+    }
+    button.addEventListener("click", function () {
+      if (animator.playing) {
+        animator.pause();
+      } else {
+        // at the end meshcat rewinds its clips but keeps the last time shown: start over
+        if (animator.time >= animator.duration) animator.reset();
+        animator.play();
+      }
+      sync();
+    });
+    slider.addEventListener("input", function () {
+      var t = parseFloat(slider.value);
+      var a = (t - R.t0) / R.speed;
+      animator.pause();
+      animator.seek(a);
+      animator.display_progress(a);
+      viewer.set_dirty();
+      sync();
+      show(t);  // the slider's own value, not its round trip through animation time
+    });
+    window.addEventListener("hashchange", sync);
+    sync();
+    var was = animator.playing;
+    (function loop() {  // follow the playing animation, and its stop at the end
+      if (animator.playing || was !== animator.playing) sync();
+      was = animator.playing;
+      requestAnimationFrame(loop);
+    })();
+  }
 })();
 """
 
@@ -400,20 +490,20 @@ def _contacts(traj: Trajectory, model) -> list[tuple[int, float]]:
     return out
 
 
-def _ground_boxes(scene: dict, center_xy: np.ndarray, size: float) -> list[tuple]:
-    """Boxes (center, lengths) drawing the scene's terrain.
+def ground_boxes(scene: dict, center_xy: np.ndarray, size: float) -> list[DrawnBox]:
+    """Boxes drawing the scene's terrain over a square of side `size` [m] at `center_xy`.
 
-    Reads `scene['terrain']`: {"type": "flat", "height": h} (default: flat at 0) and
-    optional `scene['boxes']`: [{"center": [x, y, z], "size": [lx, ly, lz]}, ...].
+    Reads `scene['terrain']`, flat ground {"type": "flat", "height", "normal"} (default:
+    flat at 0) or a `tfcontact.robot.Terrain.to_dict()` (planes, sloped ones tilted; boxes;
+    holes as gaps in the ground, with their floors), see `tfcontact.viz.terrain_view`; and
+    the optional `scene['boxes']`: [{"center": [x, y, z], "size": [lx, ly, lz]}, ...].
+
+    Raises:
+        InvalidInput: a terrain that cannot be drawn (`scene_terrain`).
     """
-    terrain = scene.get("terrain", {"type": "flat", "height": 0.0})
-    boxes = []
-    if isinstance(terrain, dict) and terrain.get("type", "flat") in ("flat", "plane"):
-        h = float(terrain.get("height", 0.0))
-        thick = 0.02
-        boxes.append(((center_xy[0], center_xy[1], h - thick / 2), (size, size, thick)))
+    boxes = terrain_boxes(scene_terrain(scene), center_xy, size)
     for box in scene.get("boxes", []):
-        boxes.append((tuple(box["center"]), tuple(box["size"])))
+        boxes.append(DrawnBox(tuple(box["center"]), tuple(box["size"]), np.eye(3), "box"))
     return boxes
 
 
@@ -554,7 +644,8 @@ def replay(
     times = np.minimum(t0 + np.arange(n_frames) * speed / fps, t1)
 
     # scene receivers
-    recorder = RecordingWindow(fragment_time_offset=t0, speed=speed, compress=compress)
+    recorder = RecordingWindow(fragment_time_offset=t0, speed=speed, compress=compress,
+                               end_time=t1)
     live_vis = None
     window: Any = recorder
     if live:
@@ -597,10 +688,13 @@ def replay(
     lo, hi = base.min(axis=0), base.max(axis=0)
     center = (lo + hi) / 2
     extent = float(max(np.max(hi - lo), 0.3))
-    for k, (c, lengths) in enumerate(_ground_boxes(traj.scene, center[:2], 4 * extent + 1)):
+    for k, box in enumerate(ground_boxes(traj.scene, center[:2], 4 * extent + 1)):
         node = root[f"ground/{k}"]
-        node.set_object(mg.Box(lengths), mg.MeshLambertMaterial(color=GROUND_COLOR))
-        node.set_transform(_translation(c))
+        node.set_object(mg.Box(box.lengths),
+                        mg.MeshLambertMaterial(color=TERRAIN_COLORS[box.role]))
+        placement = _translation(box.center)
+        placement[:3, :3] = box.rotation
+        node.set_transform(placement)
     for k, (vertices, faces) in enumerate(hole_meshes(traj.scene)):
         root[f"holes/{k}"].set_object(
             mg.TriangularMeshGeometry(vertices, faces),
