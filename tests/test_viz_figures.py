@@ -174,3 +174,26 @@ def test_path_figure_without_the_robot_keeps_the_terrain():
     assert "contacts unknown" in fig.axes[0].get_title()
     _, _, z = _section(fig)
     assert np.all(z == 0.0)
+
+
+def test_a_floating_quadruped_gets_every_name_and_a_force_figure_per_foot():
+    from tfcontact.robot import ContactSpec, RobotSpec
+
+    feet = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
+    spec = RobotSpec(source="solo12", base="floating",
+                     contacts=tuple(ContactSpec(f, 0.016) for f in feet))
+    n = 4
+    q = np.zeros((n, 18))
+    q[:, 0] = np.linspace(0.0, 0.2, n)
+    traj = _small(q=q, v=np.zeros((n, 18)), u=np.zeros((n, 12)), gap=np.ones((n, 4)),
+                  normal_velocity=np.zeros((n, 4)), tau=np.linspace(0, 1, n),
+                  clock=np.linspace(0, 1, n), s=np.ones(n), robot=spec.to_dict())
+    figures = trajectory_figures(traj)
+    assert [k for k in figures if k.startswith("force_")] == [f"force_{f}" for f in feet]
+    legend = _legend(figures["states"].axes[1])
+    assert len(legend) == 18
+    assert legend[:7] == ["x [m]", "y [m]", "z [m]", "yaw [rad]", "pitch [rad]", "roll [rad]",
+                          "FL_HAA [rad]"]
+    path = figures["path"].axes[0]
+    assert _line(path, "FL_FOOT (centre)").get_xdata()[-1] > _line(
+        path, "FL_FOOT (centre)").get_xdata()[0]

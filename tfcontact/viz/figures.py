@@ -179,9 +179,14 @@ def contact_positions(traj: Trajectory, model: Any) -> np.ndarray | None:
     return out
 
 
-def _new(rows: int, cols: int, height: float = 2.2, legend: bool = False):
-    # fixed margins: constrained layout would double the drawing time
-    extra = _LEGEND_WIDTH if legend else 0.0
+def _legend_columns(entries: int) -> int:
+    return max(1, math.ceil(entries / 12))
+
+
+def _new(rows: int, cols: int, height: float = 2.2, legend: bool | int = False):
+    # fixed margins: constrained layout would double the drawing time; `legend`: room for
+    # that many legend columns right of the axes (True: one)
+    extra = _LEGEND_WIDTH * int(legend)
     width = 5.0 * cols + extra
     fig = Figure(figsize=(width, height * rows + 0.6))
     FigureCanvasAgg(fig)
@@ -202,10 +207,11 @@ def _lines(ax, x, y, names: tuple[str, ...] | list[str], what: str, legend: bool
         ax.text(0.5, 0.5, f"no {what}", ha="center", va="center", transform=ax.transAxes)
         return
     for j in range(y.shape[1]):
-        ax.plot(x, y[:, j], lw=1.2, label=names[j])
+        # beyond the 10 colours of the cycle, dashes tell the curves apart
+        ax.plot(x, y[:, j], lw=1.2, label=names[j], ls="-" if j % 20 < 10 else "--")
     if legend:
         ax.legend(fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0),
-                  ncols=1 if y.shape[1] <= 12 else 2, borderaxespad=0.0, frameon=False)
+                  ncols=_legend_columns(y.shape[1]), borderaxespad=0.0, frameon=False)
 
 
 def _units(units: tuple[str, ...]) -> str:
@@ -213,7 +219,8 @@ def _units(units: tuple[str, ...]) -> str:
 
 
 def _states(traj: Trajectory, phys: PhysicalSamples, labels: Labels):
-    fig, axes = _new(3, 2, legend=True)
+    widest = max(traj.q.shape[1], traj.v.shape[1], traj.u.shape[1])
+    fig, axes = _new(3, 2, legend=_legend_columns(widest))
     rows = (("configuration q" + _units(labels.q_units), traj.q, phys.q, labels.q, "q"),
             ("velocity v" + _units(labels.v_units), traj.v, phys.v, labels.v, "v"),
             ("control u" + _units(labels.u_units), traj.u, phys.u, labels.u, "controls"))
@@ -245,7 +252,7 @@ def _clock(traj: Trajectory, phys):
 
 
 def _contacts(traj: Trajectory, phys: PhysicalSamples, labels: Labels):
-    fig, axes = _new(2, 2, legend=True)
+    fig, axes = _new(2, 2, legend=_legend_columns(traj.n_contacts))
     rows = (("gap [m]", traj.gap, phys.gap, "gap"),
             ("normal velocity [m/s]", traj.normal_velocity, phys.normal_velocity, "vn"))
     for r, (name, y_tau, y_t, what) in enumerate(rows):
@@ -283,7 +290,8 @@ def _path(traj: Trajectory, phys: PhysicalSamples, labels: Labels, terrain: Terr
         at = positions[phys.index]
         radii = [float(c.get("radius", 0.0)) for c in traj.robot["contacts"]]
         for k, name in enumerate(labels.contacts):
-            (line,) = ax.plot(at[:, k, 0], at[:, k, 2], lw=1.3, label=f"{name} (centre)")
+            (line,) = ax.plot(at[:, k, 0], at[:, k, 2], lw=1.3, label=f"{name} (centre)",
+                              marker="o", markevery=[0], ms=3)  # a foot at rest shows
             for i in (0, -1):  # the sphere at the start and at the end
                 ax.add_patch(_circle(at[i, k, [0, 2]], radii[k], line.get_color(), 0.25))
             for a, _ in phys.frozen_index:  # and at each impact
@@ -296,7 +304,7 @@ def _path(traj: Trajectory, phys: PhysicalSamples, labels: Labels, terrain: Terr
     base = _base_xz(traj)
     if base is not None:
         ax.plot(phys.q[:, base[0]], phys.q[:, base[1]], "--", color="0.25", lw=1.0,
-                label="base (x, z)")
+                label="base (x, z)", marker="o", markevery=[0], ms=3)
         xs.append(phys.q[:, base[0]])
         zs.append(phys.q[:, base[1]])
     if xs:
