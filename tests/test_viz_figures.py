@@ -197,3 +197,16 @@ def test_a_floating_quadruped_gets_every_name_and_a_force_figure_per_foot():
     path = figures["path"].axes[0]
     assert _line(path, "FL_FOOT (centre)").get_xdata()[-1] > _line(
         path, "FL_FOOT (centre)").get_xdata()[0]
+
+
+def test_path_figure_of_a_scene_of_boxes_only():
+    walls = [{"center": [0.5, 0.0, -0.1], "size": [1.5, 0.3, 0.05]}]
+    traj = dataclasses.replace(project_hop_trajectory(),
+                               scene={"terrain": {"type": "none"}, "boxes": walls})
+    figures = trajectory_figures(traj)
+    ax = figures["path"].axes[0]
+    (wall,) = [p for p in ax.patches if p.get_label() == "scene box"]
+    assert (wall.get_x(), wall.get_y(), wall.get_width(), wall.get_height()) == pytest.approx(
+        (-0.25, -0.125, 1.5, 0.05))
+    assert not any(line.get_color() == "0.35" for line in ax.get_lines())  # no section
+    assert "force_foot" in figures

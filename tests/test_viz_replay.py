@@ -111,3 +111,14 @@ def test_replay_tilts_a_sloped_plane(tmp_path):
     np.testing.assert_allclose(placement[:3, 2], normal, atol=1e-12)
     top = placement[:3, 3] + normal * geometry["depth"] / 2
     assert top[2] == pytest.approx(plane.height_at(top[0], top[1]))
+
+
+def test_a_scene_of_boxes_only_has_no_ground(tmp_path):
+    walls = [{"center": [0.5, 0.0, -0.1], "size": [1.5, 0.3, 0.05]},
+             {"center": [1.2, 0.0, 0.3], "size": [0.05, 0.3, 0.8]}]
+    traj = dataclasses.replace(hop_trajectory(), scene={"terrain": {"type": "none"},
+                                                        "boxes": walls})
+    drawn = _ground(replay(traj, robot=hopper_models(), html=tmp_path / "b.html", fps=5.0))
+    assert [(g["width"], g["height"], g["depth"]) for g, _ in drawn] == [
+        pytest.approx(w["size"]) for w in walls]
+    assert [list(p[:3, 3]) for _, p in drawn] == [pytest.approx(w["center"]) for w in walls]

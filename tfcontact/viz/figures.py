@@ -280,7 +280,7 @@ def _base_xz(traj: Trajectory) -> tuple[int, int] | None:
     return None
 
 
-def _path(traj: Trajectory, phys: PhysicalSamples, labels: Labels, terrain: Terrain,
+def _path(traj: Trajectory, phys: PhysicalSamples, labels: Labels, terrain: Terrain | None,
           positions: np.ndarray | None):
     fig = Figure(figsize=(8.0 + _LEGEND_WIDTH, 4.2))
     FigureCanvasAgg(fig)
@@ -317,32 +317,38 @@ def _path(traj: Trajectory, phys: PhysicalSamples, labels: Labels, terrain: Terr
     ratio = box.width * fig.get_figwidth() / (box.height * fig.get_figheight())
     z_lo = min(z.min() for z in zs) if zs else 0.0
     z_hi = max(z.max() for z in zs) if zs else 0.0
+    walls = [(np.asarray(b["center"], dtype=float), np.asarray(b["size"], dtype=float))
+             for b in traj.scene.get("boxes", []) or []]
+    for c, size in walls:
+        z_lo, z_hi = min(z_lo, c[2] - size[2] / 2), max(z_hi, c[2] + size[2] / 2)
     span = max(hi - lo + 2 * pad, (z_hi - z_lo + 2 * pad) * ratio)
     mid = (lo + hi) / 2
-    grid = section_grid(terrain, mid - span / 2, mid + span / 2)
-    ground = terrain_section(terrain, grid, y_cut)
+    grid, ground = _section(terrain, mid - span / 2, mid + span / 2, y_cut)
     finite = np.isfinite(ground)
     if finite.any():
         z_lo, z_hi = min(z_lo, float(ground[finite].min())), max(z_hi, float(ground[finite].max()))
-    z_mid = (z_lo + z_hi) / 2
     if (z_hi - z_lo + 2 * pad) * ratio > span:
         span = (z_hi - z_lo + 2 * pad) * ratio
-        grid = section_grid(terrain, mid - span / 2, mid + span / 2)
-        ground = terrain_section(terrain, grid, y_cut)
+        grid, ground = _section(terrain, mid - span / 2, mid + span / 2, y_cut)
         finite = np.isfinite(ground)
-    bottom = z_mid - span / ratio / 2
-    ax.fill_between(grid, bottom, np.where(finite, ground, bottom), where=finite,
-                    color="0.82", lw=0, label="terrain")
-    ax.plot(grid, ground, color="0.35", lw=1.0)
-    ax.set_xlim(mid - span / 2, mid + span / 2)
-    ax.set_ylim(bottom, bottom + span / ratio)
-    ax.set_aspect("equal", adjustable="box")
+    bottom = (z_lo + z_hi) / 2 - span / ratio / 2
+    if finite.any():
+        ax.fill_between(grid, bottom, np.where(finite, ground, bottom), where=finite,
+                        color="0.82", lw=0, label="terrain")
+        ax.plot(grid, ground, color="0.35", lw=1.0)
+    for k, (c, size) in enumerate(walls):
+        from matplotlib.patches import Rectangle
+
+        ax.add_patch(Rectangle((c[0] - size[0] / 2, c[2] - size[2] / 2), size[0], size[2],
+                               color="0.65", lw=0, label="scene box" if k == 0 else None))
     for k, hole in enumerate(traj.scene.get("holes", []) or []):
         if isinstance(hole, dict) and "profile" in hole:
             profile = np.asarray(hole["profile"], dtype=float)
             ax.fill(profile[:, 0], profile[:, 1], color="tab:red", alpha=0.3, lw=0,
                     label="keep-out region" if k == 0 else None)
-    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlim(mid - span / 2, mid + span / 2)
+    ax.set_ylim(bottom, bottom + span / ratio)
+    ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")
     ax.set_title(f"path in the x-z plane (physical time); terrain section at y = {y_cut:.3g} m"
@@ -353,6 +359,15 @@ def _path(traj: Trajectory, phys: PhysicalSamples, labels: Labels, terrain: Terr
     return fig
 
 
+def _section(terrain: Terrain | None, lo: float, hi: float, y: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """x samples in [lo, hi] and the terrain's height there (NaN: none) [m]."""
+    if terrain is None:
+        return np.array([lo, hi]), np.full(2, np.nan)
+    grid = section_grid(terrain, lo, hi)
+    return grid, terrain_section(terrain, grid, y)
+
+
 def _circle(center: np.ndarray, radius: float, color: str, alpha: float):
     from matplotlib.patches import Circle
 
@@ -360,13 +375,15 @@ def _circle(center: np.ndarray, radius: float, color: str, alpha: float):
                   color=color, alpha=alpha, lw=0.8)
 
 
-def _surface(traj: Trajectory, terrain: Terrain, positions: np.ndarray | None
+def _surface(traj: Trajectory, terrain: Terrain | None, positions: np.ndarray | None
              ) -> tuple[np.ndarray, np.ndarray]:
     """Per sample and contact: the terrain's unit normal (N, nc, 3) where the contact is
-    (without positions: a single plane's normal, else z) and its friction coefficient mu
-    (N, nc), NaN where unknown (no positions, no support)."""
+    (without positions: a single plane's normal, else z; no terrain: z) and its friction
+    coefficient mu (N, nc), NaN where unknown (no positions, no support)."""
     n, nc = traj.n_samples, traj.n_contacts
     mu = np.full((n, nc), np.nan)
+    if terrain is None:
+        return np.broadcast_to(np.array([0.0, 0.0, 1.0]), (n, nc, 3)), mu
     if positions is None:
         planes = terrain.planes
         normal = planes[0].normal if len(planes) == 1 and not terrain.boxes else (0, 0, 1)

@@ -493,15 +493,17 @@ def _contacts(traj: Trajectory, model) -> list[tuple[int, float]]:
 def ground_boxes(scene: dict, center_xy: np.ndarray, size: float) -> list[DrawnBox]:
     """Boxes drawing the scene's terrain over a square of side `size` [m] at `center_xy`.
 
-    Reads `scene['terrain']`, flat ground {"type": "flat", "height", "normal"} (default:
-    flat at 0) or a `tfcontact.robot.Terrain.to_dict()` (planes, sloped ones tilted; boxes;
-    holes as gaps in the ground, with their floors), see `tfcontact.viz.terrain_view`; and
-    the optional `scene['boxes']`: [{"center": [x, y, z], "size": [lx, ly, lz]}, ...].
+    Reads `scene['terrain']`: flat ground {"type": "flat", "height", "normal"} (default:
+    flat at 0), none ({"type": "none"}) or a `tfcontact.robot.Terrain.to_dict()` (planes,
+    sloped ones tilted; boxes; holes as gaps in the ground, with their floors), see
+    `tfcontact.viz.terrain_view`; and the optional `scene['boxes']`:
+    [{"center": [x, y, z], "size": [lx, ly, lz]}, ...].
 
     Raises:
         InvalidInput: a terrain that cannot be drawn (`scene_terrain`).
     """
-    boxes = terrain_boxes(scene_terrain(scene), center_xy, size)
+    terrain = scene_terrain(scene)
+    boxes = [] if terrain is None else terrain_boxes(terrain, center_xy, size)
     for box in scene.get("boxes", []):
         boxes.append(DrawnBox(tuple(box["center"]), tuple(box["size"]), np.eye(3), "box"))
     return boxes

@@ -52,8 +52,9 @@ class DrawnBox:
     role: str
 
 
-def scene_terrain(scene: dict[str, Any]) -> Terrain:
-    """The scene's terrain as a `Terrain` (module docstring); flat at 0 when absent.
+def scene_terrain(scene: dict[str, Any]) -> Terrain | None:
+    """The scene's terrain as a `Terrain` (module docstring); flat at 0 when absent; None
+    for `{"type": "none"}` (a scene of `scene["boxes"]` only, e.g. a ball in a box).
 
     Raises:
         InvalidInput: an unknown terrain description, or a flat ground facing down or
@@ -65,10 +66,13 @@ def scene_terrain(scene: dict[str, Any]) -> Terrain:
     if terrain.get("kind") == "terrain":
         return Terrain.from_dict(terrain)
     kind = terrain.get("type", "flat")
+    if kind == "none":
+        return None
     if kind not in ("flat", "plane"):
         raise InvalidInput(
             f"`scene['terrain']` of type {kind!r} cannot be drawn: give flat ground "
-            "{\"type\": \"flat\", \"height\", \"normal\"} or a Terrain.to_dict()")
+            "{\"type\": \"flat\", \"height\", \"normal\"}, {\"type\": \"none\"} or a "
+            "Terrain.to_dict()")
     n = np.asarray(terrain.get("normal", (0.0, 0.0, 1.0)), dtype=float)
     if n.shape != (3,) or not np.all(np.isfinite(n)) or not n[2] > 0:
         raise InvalidInput(f"flat ground needs a finite normal with n_z > 0, got {n.tolist()}")
