@@ -451,3 +451,55 @@ def test_a_flat_terrain_table_without_primitives_stays_a_plane(task_file):
                                                   "normal": [0.0, 0.0, 1.0]}}
     with pytest.raises(InvalidInput, match=r"`terrain` has \['smoothing'\] but no primitives"):
         load_task(_edited(path, "height = -0.01", "smoothing = 0.01"))
+
+
+# The shipped terrain tasks, planned end to end (one attempt, the tasks' "fast" preset).
+# Measured on a shared 2-core machine; see each task file's header.
+STEP_MISSED = ("measured: converged in about 40 s but stops short (base x 0.52 of 0.7) "
+               "with the foot at the step's face, and the open-loop replay of the plan "
+               "does not hold (end-state deviation 3.2, local defects summing to 0.17)")
+PLATFORM_MISSED = ("measured: the homotopy's last NLP (sigma 1e-3) hits IPOPT's 1000 "
+                   "iterations (122 s) after two solved ones: no plan")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", [
+    pytest.param("hopper-step", marks=pytest.mark.xfail(strict=True, reason=STEP_MISSED)),
+    pytest.param("hopper-platform",
+                 marks=pytest.mark.xfail(strict=True, reason=PLATFORM_MISSED)),
+])
+def test_a_shipped_terrain_task_is_planned_verified_and_clear_of_the_terrain(name):
+    """The solver finds the hop (no contact schedule): converged, verified, at its goal
+    (end x, the foot resting on the top), and the URDF's bodies clear of the terrain."""
+    import dataclasses
+
+    from tfcontact.ocp.contact import solve_contact
+    from tfcontact.verify.collision import check_robot_collisions, terrain_obstacles
+
+    setup = build_task(load_task(shipped_tasks()[name]))
+    options = dataclasses.replace(setup.options, attempts=1)
+    result = solve_contact(setup.problem, options, verbose=False, throw=False)
+    assert result.task.passed, result.task.summary()
+    assert result.verification.passed, result.verification.summary()
+    assert result.success, result.summary()
+    report = check_robot_collisions(setup.robot, result.physical.t, result.physical.q,
+                                    terrain_obstacles(setup.task.terrain.terrain))
+    assert report.passed, report.worst
+
+
+def test_the_readme_terrain_task_builds_and_models_what_the_foot_reaches():
+    """The README's terrain example: the ditch at x 3-3.4 is beyond the foot's reach
+    (base x 0.1-0.7, leg 0.5 m) and not modelled; the scene keeps it."""
+    import re
+    import tomllib
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    block = re.search(r"### Terrain: steps.*?```toml\n(.*?)```", readme, re.S)
+    task = task_from_dict(tomllib.loads(block.group(1)))
+    setup = build_task(task)
+    assert [p.to_dict()["kind"] for p in setup.terrain.primitives] == ["plane", "box"]
+    assert [p["kind"] for p in setup.scene["terrain"]["primitives"]] == ["plane", "box",
+                                                                         "hole"]
+    assert setup.problem.system.cls.contacts[0].mu == 0.8
+    gap = setup.problem.system.cls.function("gaps")
+    assert float(gap([0.7, 0.57, 0.0, 0.0, 0.5])) == pytest.approx(0.0, abs=1e-12)
