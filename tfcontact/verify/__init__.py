@@ -14,6 +14,10 @@ Parts, usable on their own (e.g. by the exact re-solve `tfcontact.ocp.polish`):
 
 * `simulate_impacts`, `replay_controls` (`tfcontact.verify.reference`): an event-detecting
   simulator of the original system with exact impacts.
+* `simulate_multicontact`, `replay_multicontact`, `multicontact_local_defects`
+  (`tfcontact.verify.multicontact`): an event-driven simulator of the original system with
+  several frictional contacts (modes and simultaneous inelastic impacts from contact LCPs,
+  `solve_lcp` in `tfcontact.verify.lcp`), and the local defects of a plan with it.
 * the physical checks (`tfcontact.verify.checks`): contact impulses recovered from the
   momentum balance (`contact_impulses`, `collocation_impulses`), the friction cone,
   Coulomb's maximal dissipation, the clock, Painleve's ill-posed contacts.
@@ -54,12 +58,25 @@ from tfcontact.verify.collision import (
     halfspace_obstacle,
     terrain_obstacles,
 )
+from tfcontact.verify.lcp import LcpSolution, solve_lcp
 from tfcontact.verify.methods import (
     AutoReplay,
     ExactReplay,
     FesdReplay,
     Replay,
     ReplayOutcome,
+)
+from tfcontact.verify.multicontact import (
+    ContactEvent,
+    ContactImpact,
+    ContactMode,
+    EventKind,
+    MultiContactOptions,
+    MultiContactSimulation,
+    SimulationStatus,
+    multicontact_local_defects,
+    replay_multicontact,
+    simulate_multicontact,
 )
 from tfcontact.verify.options import VerifyOptions
 from tfcontact.verify.plan import TimeFreezingPlan, check_time_freezing_plan, state_indices
@@ -93,14 +110,22 @@ __all__ = [
     "CollisionOptions",
     "CollisionReport",
     "CollisionStatus",
+    "ContactEvent",
+    "ContactImpact",
+    "ContactMode",
+    "EventKind",
     "ExactReplay",
     "FesdReplay",
+    "LcpSolution",
+    "MultiContactOptions",
+    "MultiContactSimulation",
     "Obstacle",
     "ReferenceImpact",
     "ReferenceSimulation",
     "Replay",
     "ReplayOutcome",
     "ReplayedPlan",
+    "SimulationStatus",
     "StackedFunction",
     "TimeFreezingPlan",
     "Verification",
@@ -120,11 +145,15 @@ __all__ = [
     "halfspace_obstacle",
     "local_defects",
     "maximal_dissipation_violation",
+    "multicontact_local_defects",
     "open_loop_sensitivity",
     "painleve_note",
     "planar_impulse_flow",
     "reference_deviation",
     "replay_controls",
+    "replay_multicontact",
     "simulate_impacts",
+    "simulate_multicontact",
+    "solve_lcp",
     "state_indices",
 ]

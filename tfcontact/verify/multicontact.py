@@ -71,10 +71,11 @@ from scipy import optimize
 from scipy.integrate import solve_ivp
 from scipy.optimize import linprog
 
-from tfcontact.errors import IncompatibleOptions, InvalidInput, positive_int
+from tfcontact.errors import IncompatibleOptions, InvalidInput, TfcontactError, positive_int
 from tfcontact.timefreezing.cls import ComplementarityLagrangianSystem
 from tfcontact.verify.lcp import solve_lcp
 from tfcontact.verify.reference import StackedFunction
+from tfcontact.verify.replay import LOCAL_DEFECT_IMPACT_WINDOW, ReplayedPlan
 
 
 class ContactMode(StrEnum):
@@ -932,6 +933,50 @@ __all__ = [
     "MultiContactOptions",
     "MultiContactSimulation",
     "SimulationStatus",
+    "multicontact_local_defects",
     "replay_multicontact",
     "simulate_multicontact",
 ]
+
+
+def multicontact_local_defects(plan: ReplayedPlan, segments: list[tuple[int, int]],
+                               gap_tolerance: float,
+                               options: MultiContactOptions | None = None
+                               ) -> tuple[float, ...]:
+    """`tfcontact.verify.local_defects` with this simulator: per control interval, the
+    deviation (inf norm) at its end of `simulate_multicontact` restarted from the plan's
+    own state at its segment's start (`defect_segments`) and run with the plan's
+    piecewise constant controls; nan where the segment runs on, inf where the simulation
+    did not succeed (Painleve, event cap, a start it rejects).
+
+    Args:
+        plan: the plan as arrays (`ReplayedPlan`); its CLS may have several frictional
+            contacts (all inelastic).
+        segments: (first, last + 1) control intervals of each restart (`defect_segments`).
+        gap_tolerance: a restart may lie this far inside an obstacle [m].
+        options: `MultiContactOptions` (default: defaults with `start_gap_tolerance` =
+            gap_tolerance).
+    """
+    if options is None:
+        options = MultiContactOptions(start_gap_tolerance=max(gap_tolerance, 1e-12))
+    clocks, states = plan.clocks, plan.states
+    defects = np.full(len(clocks) - 1, np.nan)
+    for first, end in segments:
+        duration = float(clocks[end] - clocks[first])
+        if duration <= 1e-12:
+            continue  # frozen throughout: nothing physical to compare
+        # Run a little past the end, so that an impact the plan puts on the boundary and
+        # the simulation just after it is compared on both sides.
+        window = LOCAL_DEFECT_IMPACT_WINDOW * duration / (end - first)
+        try:
+            local = replay_multicontact(plan.cls, states[first],
+                                        clocks[first:end + 1] - clocks[first],
+                                        plan.controls[first:end], duration + window,
+                                        options=options)
+        except TfcontactError:
+            local = None
+        if local is None or not local.success:
+            defects[end - 1] = np.inf
+            continue
+        defects[end - 1] = local.deviation_at(duration, states[end], window)
+    return tuple(float(d) for d in defects)
