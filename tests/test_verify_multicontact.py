@@ -366,3 +366,66 @@ def test_local_defects_vanish_for_the_closed_form_and_not_for_a_wrong_plan():
                          controls=controls, horizon=float(clocks[-1]))
     wrong_defects = np.array(multicontact_local_defects(wrong, segments, gap_tolerance=1e-9))
     assert np.all(wrong_defects[:2] > 0.1)
+
+
+# ---------------------------------------------------------------------- robustness, URDF
+
+
+def test_random_tilted_drops_end_at_rest_without_gaining_energy(rng):
+    """Seeded drops with random friction, tilt, spin and horizontal speed: every run
+    succeeds, the energy never rises (beyond the integrator's tolerance) and the box ends
+    flat at rest."""
+    M = planar_mass_matrix()
+    for _ in range(8):
+        mu, pitch = rng.uniform(0.3, 1.0), rng.uniform(-0.5, 0.5)  # at rest by T = 2 s
+        vx, spin = rng.uniform(-2.0, 2.0), rng.uniform(-1.5, 1.5)
+        sim = simulate_multicontact(planar_box(mu), np.array([0, 0.6, pitch, vx, 0, spin]),
+                                    None, 2.0)
+        assert sim.success, sim.message
+        energy = (0.5 * np.einsum("ki,ij,kj->k", sim.x[:, 3:], M, sim.x[:, 3:])
+                  + MASS * G * sim.x[:, 1])
+        assert np.diff(energy).max() <= 1e-9 * energy[0]
+        np.testing.assert_allclose(sim.x[-1, 1:], [HALF_HEIGHT, 0, 0, 0, 0], atol=1e-9)
+
+
+BOX_URDF = """<?xml version="1.0"?>
+<robot name="box">
+  <link name="body">
+    <inertial><mass value="2.0"/><inertia ixx="0.05" iyy="0.05" izz="0.05" ixy="0" ixz="0"
+      iyz="0"/></inertial>
+  </link>
+  <link name="front"/><link name="back"/>
+  <joint name="front_joint" type="fixed"><parent link="body"/><child link="front"/>
+    <origin xyz="0.5 0 -0.249"/></joint>
+  <joint name="back_joint" type="fixed"><parent link="body"/><child link="back"/>
+    <origin xyz="-0.5 0 -0.249"/></joint>
+</robot>
+"""
+
+
+def test_urdf_box_through_the_robot_layer_slides_to_the_coulomb_stop(tmp_path):
+    """The same sliding box from a URDF (planar base, two 1 mm contact spheres whose
+    centres are 0.249 m below the body's): the CLS of `from_robot` is simulated as is.
+    Stop at v0 / (mu g); the friction acts at the spheres' centres, so the normal forces
+    split as m g / 2 (1 +- mu 0.249 / a)."""
+    from tfcontact.robot import ContactSpec, load_robot
+    from tfcontact.timefreezing import from_robot
+
+    path = tmp_path / "box.urdf"
+    path.write_text(BOX_URDF)
+    robot = load_robot(str(path), base="planar",
+                       contacts=(ContactSpec("front", 0.001), ContactSpec("back", 0.001)))
+    mu, v0 = 0.4, 2.0
+    cls = from_robot(robot, mu=mu)
+    stop = v0 / (mu * G)
+    sim = simulate_multicontact(cls, np.array([0.0, 0.25, 0.0, v0, 0.0, 0.0]), None,
+                                stop + 0.2)
+    assert sim.success
+    np.testing.assert_allclose([e.time for e in sim.events], stop, rtol=1e-9)
+    np.testing.assert_allclose(sim.x[-1], [v0**2 / (2 * mu * G), 0.25, 0, 0, 0, 0],
+                               atol=1e-9)
+    sliding = (sim.t > 0) & (sim.t < stop)
+    split = mu * 0.249 / 0.5
+    np.testing.assert_allclose(sim.normal_forces[sliding][0],
+                               [MASS * G / 2 * (1 + split), MASS * G / 2 * (1 - split)],
+                               rtol=1e-9)
