@@ -567,3 +567,38 @@ def test_scene_obstacles_read_a_terrain_of_primitives(leg):
     knee = next(b for b in report.bodies if b.body == "knee_0")
     assert knee.min_distance == pytest.approx(0.22 - 0.03 - 0.1, abs=1e-9)
     assert report.passed
+
+
+def test_a_plan_through_the_terrain_is_not_a_success(leg, tmp_path, monkeypatch):
+    """`run_plan`: a plan marked converged and verified whose knee goes 4 mm through a
+    step ends with status "collision", exit code 1's success False, the body and time in
+    its summary and summary.json."""
+    import json
+
+    from tfcontact.scenes import plans
+    from tfcontact.scenes.plans import COLLISION, Plan, PlanOutcome
+
+    path, robot = leg
+    t, q = _leg_motion()
+    scene = {"terrain": {"type": "flat", "height": 0.0},
+             "boxes": [{"center": list(STEP["center"]), "size": list(STEP["size"])}]}
+
+    def solve(task, out, verbose):
+        return PlanOutcome(_trajectory(path, q, t, scene), robot, "converged", True,
+                           "verification PASSED")
+
+    monkeypatch.setitem(plans.PLANS, "leg", Plan("leg", "a leg", None, ("only",), solve))
+    report = plans.run_plan("leg", tmp_path / "out", verbose=False)
+    assert (report.success, report.status) == (False, COLLISION)
+    assert "knee_0" in report.summary and "t = 0.410 s" in report.summary
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["status"] == "collision" and summary["collisions"]["passed"] is False
+
+    clear = {"terrain": {"type": "flat", "height": 0.0}}  # no step: the same motion is fine
+
+    def solve_clear(task, out, verbose):
+        return PlanOutcome(_trajectory(path, q, t, clear), robot, "converged", True, "ok")
+
+    monkeypatch.setitem(plans.PLANS, "leg", Plan("leg", "a leg", None, ("only",), solve_clear))
+    report = plans.run_plan("leg", tmp_path / "clear", verbose=False)
+    assert (report.success, report.status) == (True, "converged")

@@ -19,6 +19,9 @@ import numpy as np
 
 from tfcontact.errors import InvalidInput, positive_int
 
+COLLISION = "collision"
+"""The status of a plan whose robot goes through the terrain or through itself."""
+
 
 @dataclass(frozen=True)
 class PlanReport:
@@ -239,7 +242,15 @@ def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
                                                 task=result.task.to_dict())
             outcome = PlanOutcome(trajectory, robot, result.status, result.success,
                                   result.summary(), task=result.task.to_dict())
-        files = _write_outcome(name, task, stage, start, outcome)
+        collisions, collision_files = _collisions(outcome, stage)
+        if collisions.get("passed") is False:
+            # a physical, verified plan whose knee or base goes through the terrain (or
+            # through the robot) is not a plan: the body and time are in the summary
+            outcome = dataclasses.replace(
+                outcome, success=False, status=COLLISION,
+                summary=f"{outcome.summary}\ncollisions FAILED: {collisions['worst']}")
+        files = _write_outcome(name, task, stage, start, outcome, collisions,
+                               collision_files)
     files = [folder.final_path(f, stage) for f in files]
     if verbose:
         print(f"wrote {len(files)} files to {folder.target}/:")
@@ -253,21 +264,18 @@ def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
                       out_dir=folder.target, files=tuple(files), summary=outcome.summary)
 
 
-def _write_outcome(name: str, task: str, out: Path, start: float,
-                   outcome: PlanOutcome) -> list[Path]:
+def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanOutcome,
+                   collisions: dict, collision_files: list[Path]) -> list[Path]:
     """Write the trajectory, figures, replay and summary.json of a solved (or failed) plan
     into `out`; returns the paths written."""
     from tfcontact.viz import plot_trajectory, replay, save_trajectory
 
-    files = list(outcome.files)
+    files = [*outcome.files, *collision_files]
     if outcome.trajectory is not None:
         npz, sidecar = save_trajectory(out / "trajectory.npz", outcome.trajectory)
         figures = plot_trajectory(outcome.trajectory, out)
-        collisions, collision_files = _collisions(outcome, out)
         page = replay(outcome.trajectory, html=out / "replay.html", robot=outcome.robot)
-        files += [npz, sidecar, *figures, *collision_files, page.html]
-    else:
-        collisions = None
+        files += [npz, sidecar, *figures, page.html]
     (out / "summary.json").write_text(json.dumps({
         "plan": name, "task": task, "status": outcome.status,
         "success": outcome.success, "wall_time": time.perf_counter() - start,
@@ -280,9 +288,11 @@ def _write_outcome(name: str, task: str, out: Path, start: float,
 def _collisions(outcome: PlanOutcome, out: Path) -> tuple[dict, list[Path]]:
     """The URDF's full collision model along the plan against its scene's terrain
     (`tfcontact.viz.collision_figure.trajectory_collisions`): reported in summary.json and
-    `collisions.png`, not part of the plan's success (yet)."""
+    `collisions.png`; a body through the terrain or the robot fails the plan."""
     from tfcontact.viz.collision_figure import save_collision_figure, trajectory_collisions
 
+    if outcome.trajectory is None:
+        return {"checked": False, "reason": "no trajectory"}, []
     try:
         report = trajectory_collisions(outcome.trajectory, robot=outcome.robot)
     except InvalidInput as err:  # a scene terrain without an obstacle form
