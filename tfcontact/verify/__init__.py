@@ -7,8 +7,9 @@ impacts), never the time-freezing modes, so that an error in those modes shows u
 Entry point: `check_time_freezing_plan(plan, options=VerifyOptions(...))` ->
 `Verification`, for a time-freezing plan given as arrays (`TimeFreezingPlan`). The replay
 method is a strategy object of `VerifyOptions.replay`: `ExactReplay()`,
-`FesdReplay(refinement=4, scheme=RadauIIA(3), relaxation=Scholtes())` or
-`AutoReplay(fallback=FesdReplay())`.
+`MultiContactReplay()`, `FesdReplay(refinement=4, scheme=RadauIIA(3),
+relaxation=Scholtes())` or `AutoReplay(fallback=FesdReplay())` (the exact replay, else the
+multi-contact one for several frictional inelastic contacts, else the fallback).
 
 Parts, usable on their own (e.g. by the exact re-solve `tfcontact.ocp.polish`):
 
@@ -63,6 +64,7 @@ from tfcontact.verify.methods import (
     AutoReplay,
     ExactReplay,
     FesdReplay,
+    MultiContactReplay,
     Replay,
     ReplayOutcome,
 )
@@ -118,6 +120,7 @@ __all__ = [
     "FesdReplay",
     "LcpSolution",
     "MultiContactOptions",
+    "MultiContactReplay",
     "MultiContactSimulation",
     "Obstacle",
     "ReferenceImpact",

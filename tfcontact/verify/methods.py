@@ -6,10 +6,16 @@ Each method is a strategy object of `VerifyOptions.replay`:
   impacts (`replay_controls`): one contact, or several frictionless elastic ones. It
   also gives the plan's local defects and, for an open-loop unstable plan, its
   amplification (`end_state_check`). Where it does not apply, verification raises.
+* `MultiContactReplay(simulation=MultiContactOptions(velocity_tolerance=1e-6))`: the
+  event-driven simulator of the original system with several frictional inelastic
+  contacts (`replay_multicontact`), and the local defects with it. Where it does not
+  apply or stops, verification raises.
 * `FesdReplay(refinement, scheme, relaxation)`: the FESD simulator of the time-freezing
   system on a grid `refinement` times finer with (by default) a higher-order scheme: any
   system, but the same reformulation the plan was computed with.
-* `AutoReplay(fallback=FesdReplay())`: the exact replay where it applies, else the fallback.
+* `AutoReplay(fallback=FesdReplay(), multicontact=MultiContactReplay())`: the exact replay
+  where it applies, else the multi-contact replay where that applies and succeeds, else
+  the fallback.
 """
 
 from __future__ import annotations
@@ -20,10 +26,23 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tfcontact.errors import InvalidInput, TfcontactError, positive_int
+from tfcontact.errors import (
+    IncompatibleOptions,
+    InvalidInput,
+    SolveFailed,
+    TfcontactError,
+    positive_int,
+)
 from tfcontact.fesd import RadauIIA, Scheme, simulate
 from tfcontact.mpcc import Relaxation, Scholtes
-from tfcontact.verify.replay import reference_deviation
+from tfcontact.timefreezing import ComplementarityLagrangianSystem
+from tfcontact.verify.multicontact import (
+    MultiContactOptions,
+    MultiContactSimulation,
+    multicontact_local_defects,
+    replay_multicontact,
+)
+from tfcontact.verify.replay import defect_segments, reference_deviation
 
 if TYPE_CHECKING:
     from tfcontact.verify.plan import TimeFreezingPlan
@@ -72,12 +91,110 @@ class ExactReplay(Replay):
     contacts with friction, a jam, a budget stop: `simulate_impacts`).
     """
 
+    @staticmethod
+    def applies_to(cls: ComplementarityLagrangianSystem) -> bool:
+        """Whether `simulate_impacts` takes this system: one contact, or several that are
+        all frictionless and elastic (the limits it raises IncompatibleOptions for)."""
+        return cls.n_contacts == 1 or all(
+            not c.has_friction and c.restitution > 0 for c in cls.contacts)
+
     def run(self, plan: TimeFreezingPlan, gap_tolerance: float,
             notes: list[str]) -> ReplayOutcome:
         deviation, method, reference_end = reference_deviation(plan.replayed(),
                                                                plan.end_state)
         return ReplayOutcome(deviation, method, reference_end,
                              plan.local_defects(gap_tolerance))
+
+
+@dataclass(frozen=True)
+class MultiContactReplay(Replay):
+    """The event-driven simulator of the original system with several frictional
+    inelastic contacts (`simulate_multicontact`: contact modes and simultaneous impacts
+    from contact LCPs): the open-loop replay of the plan's physical controls from its
+    start, compared on (q, v) at T, and the local defects (restarts from the plan's state
+    at each control-interval boundary that holds a physical state,
+    `multicontact_local_defects`).
+
+    It gives no open-loop amplification (`end_state_check` kicks the exact reference,
+    which does not take these systems): a plan whose open-loop replay parts from it by more
+    than the tolerance fails, whatever its local defects.
+
+    Args:
+        simulation: the simulator's `MultiContactOptions` (default: `velocity_tolerance`
+            1e-6 m/s, the plan's states are no more accurate); its `start_gap_tolerance`
+            is raised to the verification's gap tolerance (a plan's state may lie that
+            far inside an obstacle).
+
+    Raises (from `run`): `IncompatibleOptions` for a contact with restitution > 0;
+    `SolveFailed` (with the `MultiContactSimulation`) when the simulation stops with a
+    status (Painleve, event cap, budget); `InvalidInput` for a start inside an obstacle.
+    """
+
+    # A plan's states carry its own errors: restarts of a pushed box's plan (homotopy
+    # tolerance 1e-7) had normal velocities of 3e-7 m/s at rest, above the simulator's
+    # default 1e-7, so a contact counted as lifting and chattered at t = 0 (event cap).
+    simulation: MultiContactOptions = field(
+        default_factory=lambda: MultiContactOptions(velocity_tolerance=1e-6))
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.simulation, MultiContactOptions):
+            raise InvalidInput(f"`simulation` must be a MultiContactOptions, got "
+                               f"{self.simulation!r}")
+
+    @staticmethod
+    def applies_to(cls: ComplementarityLagrangianSystem) -> bool:
+        """Whether `simulate_multicontact` takes this system: every contact inelastic."""
+        return all(c.restitution == 0 for c in cls.contacts)
+
+    def options(self, gap_tolerance: float) -> MultiContactOptions:
+        """The simulator's options with a start allowed `gap_tolerance` [m] inside."""
+        return replace(self.simulation, start_gap_tolerance=max(
+            self.simulation.start_gap_tolerance, gap_tolerance))
+
+    def local_defects(self, plan: TimeFreezingPlan,
+                      gap_tolerance: float) -> tuple[float, ...]:
+        """The plan's local defects with this simulator (`multicontact_local_defects`,
+        cut like `TimeFreezingPlan.local_defects`)."""
+        replayed = plan.replayed()
+        return multicontact_local_defects(
+            replayed, defect_segments(replayed.clocks, ~plan.running), gap_tolerance,
+            self.options(gap_tolerance))
+
+    def simulate(self, plan: TimeFreezingPlan,
+                 gap_tolerance: float) -> MultiContactSimulation:
+        """The open-loop replay of the plan's physical controls from its start to T; a
+        failure is the result's status.
+
+        Raises:
+            IncompatibleOptions: a contact with restitution > 0.
+        """
+        cls = plan.system.cls
+        if not self.applies_to(cls):
+            elastic = [c.name for c in cls.contacts if c.restitution > 0]
+            raise IncompatibleOptions(f"the multi-contact replay models inelastic contacts "
+                                      f"only; {elastic} have restitution > 0")
+        replayed = plan.replayed()
+        return replay_multicontact(cls, replayed.x0, replayed.clocks, replayed.controls,
+                                   replayed.horizon, options=self.options(gap_tolerance))
+
+    @staticmethod
+    def outcome(plan: TimeFreezingPlan, sim: MultiContactSimulation,
+                defects: tuple[float, ...]) -> ReplayOutcome:
+        """The end-state deviation of a successful simulation, named for the report."""
+        times = np.round([imp.time for imp in sim.impacts], 4).tolist()
+        method = (f"event-driven multi-contact reference (DOP853, contact LCPs, inelastic "
+                  f"frictional impacts), {len(times)} impacts at t = {times} s, "
+                  f"{len(sim.events)} contact-mode changes")
+        return ReplayOutcome(sim.deviation_at(plan.horizon, plan.end_state), method,
+                             local_defects=defects)
+
+    def run(self, plan: TimeFreezingPlan, gap_tolerance: float,
+            notes: list[str]) -> ReplayOutcome:
+        sim = self.simulate(plan, gap_tolerance)
+        if not sim.success:
+            raise SolveFailed(f"multi-contact simulation stopped ({sim.status}): "
+                              f"{sim.message}", sim)
+        return self.outcome(plan, sim, self.local_defects(plan, gap_tolerance))
 
 
 @dataclass(frozen=True)
@@ -127,24 +244,58 @@ class FesdReplay(Replay):
 
 @dataclass(frozen=True)
 class AutoReplay(Replay):
-    """`ExactReplay()` where the reference applies, else `fallback`; the local defects are
-    computed either way (where the exact replay stopped, the intervals before still tell).
+    """An independent replay of the original system where one applies, else `fallback`:
+
+    * `ExactReplay()` where the exact-impact reference takes the system (one contact, or
+      several frictionless elastic ones); if it raises (a jam, a budget stop), `fallback`.
+    * else `multicontact` where every contact is inelastic (several frictional contacts);
+      if its simulation stops with a status (Painleve, event cap, budget) or rejects the
+      start, `fallback`, and the notes say which status and why.
+    * else (several contacts, some elastic and some with friction or inelastic) `fallback`.
+
+    The local defects of the independent replay are computed either way (where its
+    open-loop replay stopped, the intervals before still tell).
 
     Args:
-        fallback: the `FesdReplay` used where the exact reference does not apply.
+        fallback: the `FesdReplay` used where no independent replay applies.
+        multicontact: the `MultiContactReplay` of several frictional inelastic contacts.
     """
 
     fallback: FesdReplay = field(default_factory=FesdReplay)
+    multicontact: MultiContactReplay = field(default_factory=MultiContactReplay)
 
     def __post_init__(self) -> None:
         if not isinstance(self.fallback, FesdReplay):
             raise InvalidInput(f"`fallback` must be a FesdReplay, got {self.fallback!r}")
+        if not isinstance(self.multicontact, MultiContactReplay):
+            raise InvalidInput(f"`multicontact` must be a MultiContactReplay, got "
+                               f"{self.multicontact!r}")
 
     def run(self, plan: TimeFreezingPlan, gap_tolerance: float,
             notes: list[str]) -> ReplayOutcome:
+        cls = plan.system.cls
+        if not ExactReplay.applies_to(cls) and self.multicontact.applies_to(cls):
+            return self.run_multicontact(plan, gap_tolerance, notes)
         try:
             return ExactReplay().run(plan, gap_tolerance, notes)
         except TfcontactError as error:
             notes.append(f"event-detecting reference not applicable ({error}); FESD used")
         defects = plan.local_defects(gap_tolerance)
+        return replace(self.fallback.run(plan, gap_tolerance, notes), local_defects=defects)
+
+    def run_multicontact(self, plan: TimeFreezingPlan, gap_tolerance: float,
+                         notes: list[str]) -> ReplayOutcome:
+        """The multi-contact replay, else (it stopped or rejected the start) `fallback`
+        with the multi-contact local defects."""
+        defects = self.multicontact.local_defects(plan, gap_tolerance)
+        try:
+            sim = self.multicontact.simulate(plan, gap_tolerance)
+        except TfcontactError as error:
+            notes.append(f"multi-contact reference rejected the plan ({error}); FESD used")
+        else:
+            if sim.success:
+                return MultiContactReplay.outcome(plan, sim, defects)
+            stop = sim.t[-1] if sim.t.size else 0.0
+            notes.append(f"multi-contact reference stopped at t = {stop:.6g} s with status "
+                         f"{sim.status.value}: {sim.message}; FESD used")
         return replace(self.fallback.run(plan, gap_tolerance, notes), local_defects=defects)

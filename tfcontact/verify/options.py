@@ -17,9 +17,12 @@ class VerifyOptions:
         replay: how the plan's controls are re-simulated for the end-state check:
             `ExactReplay()` (the event-detecting integration of the original system with
             impacts, `simulate_impacts`: one contact, or several frictionless elastic
-            ones), `FesdReplay(refinement=4, scheme=RadauIIA(3), relaxation=Scholtes())`
-            (the FESD simulator on a finer grid) or `AutoReplay(fallback=FesdReplay())`
-            (the exact replay where it applies, else the fallback).
+            ones), `MultiContactReplay()` (the event-driven simulator of several
+            frictional inelastic contacts, `simulate_multicontact`),
+            `FesdReplay(refinement=4, scheme=RadauIIA(3), relaxation=Scholtes())` (the FESD
+            simulator on a finer grid) or `AutoReplay(fallback=FesdReplay())` (the exact
+            replay where it applies, else the multi-contact one where that applies and
+            succeeds, else the fallback).
         end_state_tolerance: of the end-state deviation [state units].
         gap_tolerance: the penetration allowed [m]; also the gap below which a contact
             counts as closed (its impulses and slip are checked).

@@ -124,8 +124,9 @@ def check_time_freezing_plan(plan: TimeFreezingPlan,
     """The independent checks of a time-freezing plan (see `Verification`).
 
     Re-simulates the plan's physical controls (`options.replay`: the event-detecting
-    reference of the original system with impacts, or the FESD simulator on a finer grid)
-    and compares the end states (with the reference, an open-loop unstable plan may pass
+    reference of the original system with impacts, the event-driven multi-contact
+    simulator for several frictional inelastic contacts, or the FESD simulator on a finer
+    grid) and compares the end states (with the reference, an open-loop unstable plan may pass
     on its local defects instead, see `end_state_check`); checks the gaps on the plan, the
     friction cone of the contact impulses recovered from the momentum balance on the
     plan's collocation polynomials (M v' - f_v t' = J^T lambda, using the CLS's own M, f_v
@@ -138,7 +139,8 @@ def check_time_freezing_plan(plan: TimeFreezingPlan,
         options: the `VerifyOptions` (default: `VerifyOptions()`).
 
     Raises:
-        TfcontactError: `ExactReplay()` where the reference does not apply.
+        TfcontactError: `ExactReplay()` or `MultiContactReplay()` where its simulator does
+            not apply or stops.
     """
     options = options if options is not None else VerifyOptions()
     system = plan.system
