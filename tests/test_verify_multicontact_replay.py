@@ -1,0 +1,140 @@
+"""The multi-contact replay (`MultiContactReplay`, and `AutoReplay`'s choice of it) on a
+real two-contact frictional time-freezing plan solved by the library: a box on two contact
+spheres pushed along the ground."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from tfcontact.errors import IncompatibleOptions, InvalidInput, SolveFailed
+from tfcontact.verify import (
+    AutoReplay,
+    ExactReplay,
+    FesdReplay,
+    MultiContactOptions,
+    MultiContactReplay,
+    TimeFreezingPlan,
+    VerifyOptions,
+    check_time_freezing_plan,
+)
+
+# A 2 kg box on two 0.1 m contact spheres 0.4 m apart whose centres are at the body's
+# height: the friction acts at the centres, so a horizontal push gives no pitch moment and
+# the normal forces split evenly (the impulses the checks recover are then unique).
+BOX_URDF = """<?xml version="1.0"?>
+<robot name="box">
+  <link name="body">
+    <inertial><mass value="2.0"/><inertia ixx="0.05" iyy="0.05" izz="0.05" ixy="0" ixz="0"
+      iyz="0"/></inertial>
+  </link>
+  <link name="front"/><link name="back"/>
+  <joint name="front_joint" type="fixed"><parent link="body"/><child link="front"/>
+    <origin xyz="0.2 0 0"/></joint>
+  <joint name="back_joint" type="fixed"><parent link="body"/><child link="back"/>
+    <origin xyz="-0.2 0 0"/></joint>
+</robot>
+"""
+MU = 0.4
+N_INTERVALS = 4
+
+
+@pytest.fixture(scope="module")
+def pushed_box(tmp_path_factory) -> TimeFreezingPlan:
+    """The box pushed from rest towards x = 0.15 m in 0.6 s (4 control intervals, the
+    push |u_x| <= 20 N on the base's x, none on z and pitch): it slides and comes to a
+    stop on both contacts (measured: solved in 3 s, 525 IPOPT iterations)."""
+    from tfcontact.ocp import ContactProblem, ContactSolverOptions, solve_contact
+    from tfcontact.ocp.contact import time_freezing_plan
+    from tfcontact.robot import ContactSpec, load_robot
+    from tfcontact.timefreezing import from_robot, time_freeze
+
+    path = tmp_path_factory.mktemp("box") / "box.urdf"
+    path.write_text(BOX_URDF)
+    robot = load_robot(str(path), base="planar",
+                       contacts=(ContactSpec("front", 0.1), ContactSpec("back", 0.1)))
+    cls = from_robot(robot, mu=MU, a_n=50.0, actuated=["root_joint"])
+    tf = time_freeze(cls)
+    x = tf.y[tf.q_index][0]
+    problem = ContactProblem(system=tf, q0=[0.0, 0.1, 0.0], v0=[0.0, 0.0, 0.0], horizon=0.6,
+                             n_intervals=N_INTERVALS, u_lower=[-20.0, 0.0, 0.0],
+                             u_upper=[20.0, 0.0, 0.0],
+                             running_cost=10 * (x - 0.15) ** 2 + 1e-3 * ca.sumsqr(tf.u))
+    options = ContactSolverOptions()
+    result = solve_contact(problem, options, verbose=False)
+    assert result.ocp.success, result.message
+    return time_freezing_plan(problem, result.system, result.ocp, result.physical, options)
+
+
+def test_the_replays_that_take_two_frictional_inelastic_contacts(pushed_box):
+    cls = pushed_box.system.cls
+    assert cls.n_contacts == 2 and all(c.mu == MU and c.restitution == 0
+                                       for c in cls.contacts)
+    assert not ExactReplay.applies_to(cls) and MultiContactReplay.applies_to(cls)
+    with pytest.raises(IncompatibleOptions, match="several contacts needs them frictionless"):
+        check_time_freezing_plan(pushed_box, VerifyOptions(replay=ExactReplay()))
+
+
+def test_auto_replay_checks_a_two_contact_plan_with_the_multicontact_reference(pushed_box):
+    """`AutoReplay` (the default) replays the plan with the event-driven multi-contact
+    simulator: the end state and every local defect agree to the plan's tolerances
+    (measured: end-state deviation 9.1e-8, defects <= 3.7e-7, 0.07 s)."""
+    start = time.perf_counter()
+    auto = check_time_freezing_plan(pushed_box)
+    elapsed = time.perf_counter() - start
+    assert auto.passed, auto.summary()
+    assert auto.method.startswith("event-driven multi-contact reference (DOP853, contact "
+                                  "LCPs, inelastic frictional impacts), 0 impacts")
+    assert auto.end_state_deviation < 1e-6
+    assert len(auto.local_defects) == N_INTERVALS and max(auto.local_defects) < 1e-5
+    assert not any("FESD" in note for note in auto.notes)
+    assert elapsed < 10.0
+    direct = check_time_freezing_plan(pushed_box, VerifyOptions(replay=MultiContactReplay()))
+    assert direct.summary() == auto.summary()
+
+
+def test_a_plan_with_scaled_controls_fails_the_multicontact_replay(pushed_box):
+    """The same states with the push scaled by 1.5: the replay slides further than the
+    plan, so the end-state check fails and the local defects show where (measured:
+    end-state deviation 0.18, first interval's defect 0.64)."""
+    u = pushed_box.u.copy()
+    n_u = pushed_box.system.cls.n_u
+    u[:, :n_u] *= 1.5
+    tampered = replace(pushed_box, u=u)
+    verification = check_time_freezing_plan(tampered)
+    assert verification.method.startswith("event-driven multi-contact reference")
+    assert not verification.passed
+    assert verification.end_state_deviation > VerifyOptions().end_state_tolerance
+    assert max(verification.local_defects) > VerifyOptions().end_state_tolerance
+
+
+def test_auto_replay_falls_back_to_fesd_when_the_multicontact_simulation_stops(pushed_box):
+    """A multi-contact simulation that stops with a status (here its evaluation budget) is
+    an error of `MultiContactReplay`; `AutoReplay` says which status and why and replays
+    with its FESD fallback, keeping the multi-contact local defects (inf: stopped too)."""
+    starved = MultiContactReplay(simulation=MultiContactOptions(max_rhs_evaluations=20))
+    with pytest.raises(SolveFailed, match=r"multi-contact simulation stopped "
+                                          r"\(max_rhs_evaluations\): stopped after 20"):
+        check_time_freezing_plan(pushed_box, VerifyOptions(replay=starved))
+    auto = check_time_freezing_plan(pushed_box, VerifyOptions(replay=AutoReplay(
+        fallback=FesdReplay(refinement=2), multicontact=starved)))
+    assert auto.method.startswith("FESD re-simulation, 8 steps")
+    assert auto.notes[0].startswith("multi-contact reference stopped at t = ")
+    assert "with status max_rhs_evaluations: stopped after 20 model evaluations" \
+        in auto.notes[0]
+    assert auto.notes[0].endswith("; FESD used")
+    assert np.all(np.isinf(auto.local_defects))
+
+
+def test_replay_options_are_checked():
+    with pytest.raises(InvalidInput, match="`simulation` must be a MultiContactOptions, "
+                                           "got 3"):
+        MultiContactReplay(simulation=3)
+    with pytest.raises(InvalidInput, match=r"`multicontact` must be a MultiContactReplay, "
+                                           r"got FesdReplay\("):
+        AutoReplay(multicontact=FesdReplay())
+    assert AutoReplay() == AutoReplay(FesdReplay(), MultiContactReplay())
