@@ -9,8 +9,11 @@ IIA damps the wall spring once the speed of time compresses a bounce into about 
 elements, and the optimiser used that damping (bounces losing up to a quarter of their
 normal velocity at e = 1; replay 17 away), while Gauss-Legendre collocation conserves
 the spring's energy (bounces exact; the w = 3 pi plan agrees with the exact replay to
-4e-7). At w = pi, sigma_0 = 1 left the guess for a spurious bouncing local minimum and
-1e-3 for a plan that grazed the walls. The plan is verified by
+2e-7). At w = pi, sigma_0 = 1 left the guess for a spurious bouncing local minimum and
+1e-3 for a plan that grazed the walls. The solver settings are `box_circle_options()`:
+sigma shrinks by kappa = 0.05 per NLP and MUMPS gets a smaller workspace, which brought the
+w = 3 pi plan from 612 to 524 IPOPT iterations, each up to 18 % cheaper
+(`scripts/bench_ball_in_box.py`, benchmarks/ball_in_box_speed.md). The plan is verified by
 re-simulation and writes `trajectory.npz/.json`, figures in numerical and physical time,
 the path in the plane and `summary.json` into the output folder (default
 `out/ball_in_box_w<omega/pi>`). Exact tracking needs R w^2 N: w = pi (9.9 N) touches no
@@ -23,6 +26,7 @@ wall; w = 3 pi (88.8 N, TF-2's value) must bounce.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -31,11 +35,15 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from tfcontact.fesd import GaussLegendre
-from tfcontact.mpcc import RELAXATIONS, Homotopy
+from tfcontact.mpcc import RELAXATIONS
 from tfcontact.ocp.contact import ContactSolverOptions, solve_contact
 from tfcontact.scenes.ball_in_box import TF2_WALLS, circle_reference
-from tfcontact.scenes.particle_ocps import BALL_RADIUS, BALL_ROBOT, box_circle_problem
+from tfcontact.scenes.particle_ocps import (
+    BALL_RADIUS,
+    BALL_ROBOT,
+    box_circle_options,
+    box_circle_problem,
+)
 from tfcontact.viz.plan import save_plan, trajectory_from_result
 
 RADIUS = 1.0
@@ -90,23 +98,34 @@ def tracking_error(result, omega: float) -> float:
     return float(np.max(np.hypot(q[:, 0] - qx, q[:, 1] - qy)))
 
 
+def plan_options(relaxation: str | None = None,
+                 sigma0: float | None = None) -> ContactSolverOptions:
+    """`box_circle_options()` with the command line's relaxation and sigma_0, if given."""
+    options = box_circle_options()
+    if relaxation is not None:
+        options = dataclasses.replace(options, relaxation=RELAXATIONS[relaxation]())
+    if sigma0 is not None:
+        options = dataclasses.replace(
+            options, homotopy=dataclasses.replace(options.homotopy, sigma_0=sigma0))
+    return options
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--omega", type=float, default=1.0, help="w / pi [-]")
     parser.add_argument("--out", default=None, help="output folder")
     parser.add_argument("--n-intervals", type=int, default=25, help="control intervals N")
-    parser.add_argument("--relaxation", choices=sorted(RELAXATIONS), default="linf")
-    parser.add_argument("--sigma0", type=float, default=0.1,
-                        help="first relaxation parameter (the plan starts on the reference)")
+    parser.add_argument("--relaxation", choices=sorted(RELAXATIONS), default=None,
+                        help="MPCC relaxation (default: box_circle_options(), linf)")
+    parser.add_argument("--sigma0", type=float, default=None,
+                        help="first relaxation parameter (default: box_circle_options(), 0.1; "
+                             "the plan starts on the reference)")
     parser.add_argument("--quiet", action="store_true", help="no homotopy progress lines")
     args = parser.parse_args(argv)
     omega = args.omega * math.pi
     out = Path(args.out or f"out/ball_in_box_w{args.omega:g}")
     problem = box_circle_problem(omega, radius=RADIUS, n_intervals=args.n_intervals)
-    options = ContactSolverOptions(
-        scheme=GaussLegendre(2), n_finite_elements=3,
-        relaxation=RELAXATIONS[args.relaxation](),
-        homotopy=Homotopy(sigma_0=args.sigma0, tolerance=1e-7))
+    options = plan_options(args.relaxation, args.sigma0)
     result = solve_contact(problem, options, verbose=not args.quiet)
     if args.quiet:
         print(result.summary())

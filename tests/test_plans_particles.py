@@ -21,6 +21,7 @@ from tfcontact.ocp.contact import ContactProblem, ContactSolverOptions, solve_co
 from tfcontact.scenes.ball_in_box import TF2_WALLS, WALLS, ball_in_box
 from tfcontact.scenes.particle_ocps import (
     BALL_ROBOT,
+    box_circle_options,
     box_circle_problem,
     particle_friction_problem,
     throwing_ball_problem,
@@ -107,6 +108,26 @@ def test_contact_problem_guess_shape():
     with pytest.raises(InvalidInput, match=r"`guess` must be a finite array .* shape \(5, 4\)"):
         ContactProblem(system=ball_in_box(), q0=[1, 0], v0=[0, 1], horizon=1.0,
                        n_intervals=4, guess=np.zeros((4, 4)))
+
+
+def test_box_plan_and_bench_settings(load_script):
+    """The plan script's settings are `box_circle_options()`, its flags replace one field
+    each, and the bench's first variant is the seed's settings (the ratios' base)."""
+    plan = load_script("plan_ball_in_box")
+    assert plan.plan_options() == box_circle_options()
+    options = plan.plan_options("scholtes", 1e-3)
+    assert options.relaxation.name == "scholtes"
+    assert options.homotopy == dataclasses.replace(box_circle_options().homotopy, sigma_0=1e-3)
+    bench = load_script("bench_ball_in_box")
+    assert list(bench.VARIANTS)[0] == "seed"
+    seed = bench.VARIANTS["seed"]()
+    assert seed.homotopy == Homotopy(sigma_0=0.1, tolerance=1e-7)
+    assert seed.nlp == ContactSolverOptions().nlp
+    assert bench.VARIANTS["chosen: mem50, kappa=0.05"]() == box_circle_options()
+    problem = box_circle_problem(3 * math.pi, n_intervals=4)
+    moved = bench.perturbed(problem, 1e-9, seed=1)
+    np.testing.assert_array_equal(moved.guess[0], problem.guess[0])  # the start stays
+    assert 0 < np.max(np.abs(moved.guess - problem.guess)) < 1e-8
 
 
 # ---------------------------------------------------------------- reduced OCPs, slow

@@ -119,11 +119,12 @@ class Ipopt:
             the last NLP's primal-dual solution: its bound and constraint multipliers too,
             not only its variables (IPOPT's `warm_start_init_point`), moved at least this
             far into the interior (`warm_start_bound_push`, `warm_start_mult_bound_push`;
-            also `mu_init`). A relaxed NLP's multipliers change little from one sigma to
-            the next, and a cold start throws them away: the 2-D ball's w = 3 pi plan
-            took 62 + 89 instead of 133 + 196 iterations in its second and third NLP with
-            1e-9 (benchmarks/ball_in_box_speed.md). Off by default: the iterates, and with
-            round-off the local solution reached, change.
+            also `mu_init`). A cold start throws the last NLP's multipliers away: with
+            1e-9 the 2-D ball's w = 3 pi plan took 62 + 89 instead of 133 + 196
+            iterations in its second and third NLP; but from starts moved by 1e-9 m the
+            spread stayed as wide as without (benchmarks/ball_in_box_speed.md), and 1e-6
+            or 1e-12 cost more than a cold start there. Off by default: the iterates, and
+            with round-off the local solution reached, change.
     """
 
     tol: float = 1e-10

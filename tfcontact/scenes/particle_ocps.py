@@ -15,7 +15,9 @@ import casadi as ca
 import numpy as np
 
 from tfcontact.errors import InvalidInput
-from tfcontact.ocp.contact import ContactProblem
+from tfcontact.fesd import GaussLegendre
+from tfcontact.mpcc import Homotopy, Ipopt, LinfPenalty
+from tfcontact.ocp.contact import ContactProblem, ContactSolverOptions
 from tfcontact.ocp.problem import Constraint
 from tfcontact.robot import ContactSpec, RobotSpec
 from tfcontact.scenes.ball_in_box import TF2_WALLS, ball_in_box, circle_reference
@@ -78,6 +80,43 @@ def box_circle_problem(
         guess=np.column_stack([gx, gy, gvx, gvy]),
         speed_of_time=speed_of_time, numerical_horizon=numerical_horizon,
     )
+
+
+# MUMPS's workspace for the box plans' KKT factorisations [% over its estimate]. IPOPT's
+# default, 1000, has MUMPS allocate eleven times its estimate for every factorisation:
+# 50 made each IPOPT iteration of the w = 3 pi NLP about 18 % cheaper with the same
+# iterates (MUMPS enlarges the workspace itself when delayed pivots need more).
+BOX_MUMPS_MEM_PERCENT = 50
+
+
+def box_circle_options() -> ContactSolverOptions:
+    """The solver settings of the box plans (`box_circle_problem`, w = pi and 3 pi).
+
+    Gauss-Legendre collocation with 2 stages (order 4, symmetric: it does not damp the wall
+    spring, which Radau IIA's damping let the optimiser exploit), N_FE = 3, the l_inf
+    penalty from sigma_0 = 0.1 (the plan starts on the reference; benchmarks/
+    plans_particles.md), homotopy tolerance 1e-7, IPOPT tolerance 1e-8.
+
+    Chosen for speed by `scripts/bench_ball_in_box.py` (benchmarks/ball_in_box_speed.md),
+    against the seed's settings (kappa = 0.1, IPOPT's defaults otherwise): sigma shrinks
+    by kappa = 0.05 per NLP (0.1, 5e-3, 2.5e-4), and MUMPS gets `BOX_MUMPS_MEM_PERCENT` %
+    workspace instead of IPOPT's 1000 %. The w = 3 pi plan then takes 524 IPOPT
+    iterations instead of 612, each up to 18 % cheaper, and reaches the same plan
+    (objective 21.63, 8 bounces, end-state deviation 1.6e-7 from the exact four-wall
+    replay). Which local solution a homotopy reaches, and in how many iterations, depends
+    on round-off: from five starts (the reference, and moved by 1e-9 m) these settings
+    took 519-574 iterations, the seed's 612-1190. Tried and left out: MUMPS's AMD
+    ordering (each iteration of the third NLP twice as dear), warm starting
+    the later NLPs from the multipliers (`Ipopt(warm_start_push=1e-9)`: 457-883) and
+    `alpha_for_y = "min"` (333-606 with the warm start, but the w = pi plan then ends on
+    a spurious bouncing local minimum). The w = pi plan converges in its first NLP, so
+    kappa does not change it.
+    """
+    return ContactSolverOptions(
+        scheme=GaussLegendre(2), n_finite_elements=3, relaxation=LinfPenalty(),
+        homotopy=Homotopy(sigma_0=0.1, kappa=0.05, tolerance=1e-7),
+        nlp=Ipopt(tol=1e-8, max_iter=2000,
+                  options={"mumps_mem_percent": BOX_MUMPS_MEM_PERCENT}))
 
 
 def throwing_ball_problem(
