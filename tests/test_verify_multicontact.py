@@ -316,6 +316,26 @@ def test_painleve_slip_and_the_event_cap_are_statuses():
     assert "max_events" in capped.message
 
 
+@pytest.mark.parametrize("push_ratio", [0.0, 0.5])
+def test_a_restart_inside_the_ground_that_separates_lands_back_at_its_depth(push_ratio):
+    """A plan's restart 2e-8 m inside the ground (within the start tolerance) with a
+    separating normal velocity 3e-7 m/s (above `velocity_tolerance`): free flight back to
+    the start's depth after 2 v_n / g, an inelastic landing, then rest (stick below
+    mu m g) - not a touchdown event at t = 0 over and over until the event cap."""
+    depth, vn, mu = 2e-8, 3e-7, 0.5
+    start = resting(v=(0.0, vn, 0.0), height=HALF_HEIGHT - depth)
+    push = np.array([push_ratio * mu * MASS * G])
+    sim = simulate_multicontact(planar_box(mu, push=True), start, lambda t: push, 0.05,
+                                options=MultiContactOptions(start_gap_tolerance=1e-7))
+    assert sim.success, sim.message
+    assert len(sim.impacts) == 1
+    # The flight's apex is 5e-15 m, a few ulps of z = 0.25 m: the landing time to 1 %.
+    assert sim.impacts[0].time == pytest.approx(2 * vn / G, rel=1e-2)
+    assert {e.kind for e in sim.events} == {EventKind.IMPACT}
+    assert sim.modes[-1][1] == (ContactMode.STICK, ContactMode.STICK)
+    np.testing.assert_allclose(sim.final_state(), start * [1, 1, 1, 0, 0, 0], atol=1e-12)
+
+
 def test_inputs_are_checked():
     with pytest.raises(InvalidInput, match="`facets` must be even"):
         MultiContactOptions(facets=5)

@@ -53,6 +53,10 @@ rest (|v| <= `velocity_tolerance`), are set to zero by the minimum-kinetic-energ
 projection v <- v - M^-1 A^T (A M^-1 A^T)^+ A v; its size (of the integrator's tolerance)
 is reported (`max_velocity_projection`).
 
+Starts inside an obstacle (up to `start_gap_tolerance`, a plan's restart): a contact that
+separates there flies and lands back at its starting depth (its touchdown level); the first
+step of such a phase stays short of the landing so the event cannot fire at the start.
+
 Limits (raised as IncompatibleOptions): every contact inelastic (restitution 0; frictionless
 elastic contacts: `simulate_impacts`); n_q = n_v.
 """
@@ -832,6 +836,30 @@ class _Simulator:
                 tags.append(("turn", i))
         return rhs, events, tags
 
+    def first_step(self, phase: _Phase, rhs: Callable[[float, np.ndarray], np.ndarray],
+                   t: float, x: np.ndarray) -> float | None:
+        """A first step short enough that every open contact leaving its surface (gap
+        within `contact_tolerance`, v_n > 0, a_n < 0) is still above its touchdown level
+        at the step's end (half its time to the apex). Its touchdown event is 0 at the
+        start (a start inside the surface lands back at its own depth, `phase_functions`);
+        a first step past the landing makes the event's root finder return the start
+        itself, and the contact would open again and again at the same instant."""
+        model, n = self.model, self.model.n
+        terms = model.terms(x, self.control(t))
+        leaving = [i for i in range(model.n_c) if phase.modes[i] == ContactMode.OPEN
+                   and terms.gaps[i] <= self.opt.contact_tolerance]
+        if not leaving:
+            return None
+        acceleration = rhs(t, x)[n:]
+        flights = []
+        for i in leaving:
+            normal = terms.j[:, model.normal_col(i)]
+            vn = float(normal @ x[n:])
+            an = float(normal @ acceleration + terms.drift[model.normal_col(i)])
+            if vn > 0 and an < 0:
+                flights.append(vn / -an)
+        return 0.5 * min(flights) if flights else None
+
     # ---------------------------------------------------------------- loop
 
     def run(self, x0: np.ndarray) -> MultiContactSimulation:
@@ -857,9 +885,12 @@ class _Simulator:
                     return self.control(min(time, t_left))
 
                 rhs, events, tags = self.phase_functions(phase, segment, x)
+                step = self.first_step(phase, rhs, t, x)
+                step = None if step is None else min(step, t_stop - t, opt.max_step)
                 with np.errstate(under="ignore"):
                     sol = solve_ivp(rhs, (t, t_stop), x, method="DOP853", rtol=opt.rtol,
-                                    atol=opt.atol, events=events, max_step=opt.max_step)
+                                    atol=opt.atol, events=events, max_step=opt.max_step,
+                                    first_step=step)
                 if sol.status == -1:
                     status = SimulationStatus.INTEGRATION_FAILED
                     message = f"solve_ivp failed in modes {phase.modes}: {sol.message}"
