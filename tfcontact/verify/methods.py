@@ -6,7 +6,7 @@ Each method is a strategy object of `VerifyOptions.replay`:
   impacts (`replay_controls`): one contact, or several frictionless elastic ones. It
   also gives the plan's local defects and, for an open-loop unstable plan, its
   amplification (`end_state_check`). Where it does not apply, verification raises.
-* `MultiContactReplay(simulation=MultiContactOptions(velocity_tolerance=1e-6))`: the
+* `MultiContactReplay(simulation=MultiContactOptions())`: the
   event-driven simulator of the original system with several frictional inelastic
   contacts (`replay_multicontact`), and the local defects with it. Where it does not
   apply or stops, verification raises.
@@ -120,21 +120,19 @@ class MultiContactReplay(Replay):
     than the tolerance fails, whatever its local defects.
 
     Args:
-        simulation: the simulator's `MultiContactOptions` (default: `velocity_tolerance`
-            1e-6 m/s, the plan's states are no more accurate); its `start_gap_tolerance`
-            is raised to the verification's gap tolerance (a plan's state may lie that
-            far inside an obstacle).
+        simulation: the simulator's `MultiContactOptions` (default: its defaults); its
+            `start_gap_tolerance` is raised to the verification's gap tolerance (a plan's
+            state may lie that far inside an obstacle).
 
     Raises (from `run`): `IncompatibleOptions` for a contact with restitution > 0;
     `SolveFailed` (with the `MultiContactSimulation`) when the simulation stops with a
     status (Painleve, event cap, budget); `InvalidInput` for a start inside an obstacle.
     """
 
-    # A plan's states carry its own errors: restarts of a pushed box's plan (homotopy
-    # tolerance 1e-7) had normal velocities of 3e-7 m/s at rest, above the simulator's
-    # default 1e-7, so a contact counted as lifting and chattered at t = 0 (event cap).
-    simulation: MultiContactOptions = field(
-        default_factory=lambda: MultiContactOptions(velocity_tolerance=1e-6))
+    # The simulator's defaults: a restart of a pushed box's plan 2e-8 m inside the ground
+    # with v_n = 3e-7 m/s (the plan's own error) now flies and lands back at its depth
+    # (`simulate_multicontact`); it used to chatter at t = 0 and needed 1e-6 m/s here.
+    simulation: MultiContactOptions = field(default_factory=MultiContactOptions)
 
     def __post_init__(self) -> None:
         if not isinstance(self.simulation, MultiContactOptions):
