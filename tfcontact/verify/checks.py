@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import numpy as np
+from scipy.optimize import linprog
 
 from tfcontact.timefreezing import ComplementarityLagrangianSystem
 
@@ -167,15 +168,10 @@ def maximal_dissipation_violation(
     col, slip_col = 0, 0
     for mu_i, d in zip(mu, n_tangents, strict=True):
         if d:
-            v_t = slip_velocities[:, :, slip_col : slip_col + d]
-            speed = np.linalg.norm(v_t, axis=2)
-            moving = np.all(speed > slip_threshold, axis=1)
-            unit = v_t / np.where(speed > 0.0, speed, 1.0)[:, :, None]
-            aligned = np.all(np.einsum("epk,eqk->epq", unit, unit) > 0.0, axis=(1, 2))
-            slipping = moving & aligned
+            slipping, direction = slip_directions(
+                slip_velocities[:, :, slip_col : slip_col + d], slip_threshold)
             if np.any(slipping):
-                direction = unit[slipping].mean(axis=1)
-                direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+                direction = direction[slipping]
                 normal = impulses[slipping, col]
                 tangential = impulses[slipping, col + 1 : col + 1 + d]
                 residual = tangential + mu_i * normal[:, None] * direction
@@ -184,6 +180,167 @@ def maximal_dissipation_violation(
         col += 1 + d
         slip_col += d
     return worst, checked
+
+
+def slip_directions(slip: np.ndarray, slip_threshold: float = SLIP_THRESHOLD
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(E,) whether one contact slips on each element (||v_t|| > `slip_threshold` at every
+    sample, unit directions pairwise at less than 90 degrees) and (E, d) its mean unit
+    direction (`maximal_dissipation_violation`); `slip` is (E, P, d) [m/s]."""
+    speed = np.linalg.norm(slip, axis=2)
+    moving = np.all(speed > slip_threshold, axis=1)
+    unit = slip / np.where(speed > 0.0, speed, 1.0)[:, :, None]
+    aligned = np.all(np.einsum("epk,eqk->epq", unit, unit) > 0.0, axis=(1, 2))
+    direction = unit.mean(axis=1)
+    length = np.linalg.norm(direction, axis=1, keepdims=True)
+    return moving & aligned, direction / np.where(length > 0.0, length, 1.0)
+
+
+def impulse_freedom(
+    x_stages: np.ndarray,
+    h: np.ndarray,
+    b: np.ndarray,
+    q_index: slice,
+    contact_jacobian: Callable[[np.ndarray], np.ndarray],
+) -> list[np.ndarray]:
+    """Per finite element, the changes of its contact impulse that the momentum balance
+    cannot see (statically indeterminate contacts: two feet side by side, a box on two
+    corners).
+
+    `collocation_impulses` takes the minimum-norm lambda_j at each stage; any lambda_j +
+    P_j N c with N spanning the null space of the element's mean contact Jacobian (the
+    (n_v, m) matrix J with M v' - f_v t' = J lambda, over its columns nonzero at every
+    stage, i.e. contacts closed throughout) and P_j the projector onto the null space of
+    J(q_j) reproduces every stage's momentum balance exactly. The
+    element impulse then moves by K c, K = h sum_j b_j P_j N. One c per element: the
+    stages' null spaces differ by O(|q_j - q_0|), so stage-wise shifts add nothing to first
+    order, and cannot cancel into directions the contacts do not have.
+
+    Args:
+        x_stages: (E, s, n_y); h: (E,); b: the tableau's weights; q_index: q in y.
+        contact_jacobian: as in `contact_impulses` (zero columns for open contacts).
+
+    Returns:
+        (E,) arrays K of shape (m, r), r = 0 where the impulse is unique.
+    """
+    b = np.asarray(b, dtype=float)
+    freedom = []
+    for e in range(len(h)):
+        jacs = [np.asarray(contact_jacobian(x_stages[e, j, q_index]), dtype=float)
+                for j in range(len(b))]
+        m = jacs[0].shape[1]
+        active = np.flatnonzero(np.all([np.abs(jac).max(axis=0) > 0.0 for jac in jacs],
+                                       axis=0))
+        mean = sum(bj * jac for bj, jac in zip(b, jacs, strict=True))[:, active]
+        null = _null_space(mean)
+        k = np.zeros((m, null.shape[1]))
+        if null.shape[1]:
+            for bj, jac in zip(b, jacs, strict=True):
+                ja = jac[:, active]
+                projected = null - np.linalg.pinv(ja, rcond=1e-10) @ (ja @ null)
+                k[active] += h[e] * bj * projected
+        freedom.append(k)
+    return freedom
+
+
+def _null_space(a: np.ndarray) -> np.ndarray:
+    """An orthonormal basis (columns) of {z : a z = 0}, relative tolerance 1e-10."""
+    if a.size == 0:
+        return np.zeros((a.shape[1], 0))
+    _, sv, vt = np.linalg.svd(a)
+    rank = int(np.sum(sv > 1e-10 * max(float(sv.max(initial=0.0)), 1e-300)))
+    return vt[rank:].T
+
+
+CONE_FACES = 64
+"""Faces of the polygon circumscribing a 3-D friction cone (and the dissipation residual's
+disc) in `coulomb_split`'s linear program: the program's optimum is within
+1 / cos(pi / 64) - 1 = 0.12 % of the exact one; the split it returns is judged exactly."""
+
+
+def coulomb_split(
+    impulses: np.ndarray,
+    freedom: Sequence[np.ndarray],
+    mu: Sequence[float],
+    n_tangents: Sequence[int],
+    slip_velocities: np.ndarray,
+    slip_threshold: float = SLIP_THRESHOLD,
+) -> np.ndarray:
+    """The split of each element's contact impulse, among those its momentum balance
+    admits (`impulse_freedom`: Lambda + K c), that is closest to Coulomb's law: it
+    minimises the largest violation of the friction cone (`friction_cone_violation`) and,
+    where a contact slips, of maximal dissipation (`maximal_dissipation_violation`).
+
+    Where forces are not unique (several closed contacts), physics asks only that SOME
+    admissible split obey the law: the minimum-norm split shares friction evenly between
+    contacts whose normal forces differ (a pushed box whose contacts lie below its centre
+    of mass) and pushes the one carrying less weight out of its cone. A linear program per
+    element (HiGHS; 3-D cones and dissipation discs as circumscribed polygons of
+    `CONE_FACES` faces) finds c; the element keeps the minimum-norm split unless the exact
+    violation at the program's split is smaller. Elements without freedom are unchanged.
+
+    Args:
+        impulses: (E, m) minimum-norm impulses (`collocation_impulses`) [N s].
+        freedom: (E,) arrays K (m, r) from `impulse_freedom`.
+        mu, n_tangents: per contact.
+        slip_velocities, slip_threshold: as in `maximal_dissipation_violation`.
+
+    Returns:
+        (E, m) the chosen impulses [N s].
+    """
+    split = np.array(impulses, dtype=float, copy=True)
+    starts = np.cumsum([0] + [1 + d for d in n_tangents])[:-1]
+    slip_starts = np.cumsum([0] + list(n_tangents))[:-1]
+    slipping = [slip_directions(slip_velocities[:, :, a : a + d], slip_threshold)
+                if d else None for a, d in zip(slip_starts, n_tangents, strict=True)]
+    angles = 2 * np.pi * (np.arange(CONE_FACES) + 0.5) / CONE_FACES
+    faces = {1: np.array([[1.0], [-1.0]]),
+             2: np.column_stack([np.cos(angles), np.sin(angles)])}
+
+    def violation(lam: np.ndarray, e: int) -> float:
+        row = lam[None]
+        cone = friction_cone_violation(row, mu, n_tangents)
+        dissipation, _ = maximal_dissipation_violation(
+            row, slip_velocities[e : e + 1], mu, n_tangents, slip_threshold)
+        return max(cone, dissipation)
+
+    for e, k in enumerate(freedom):
+        if k.shape[1] == 0 or violation(split[e], e) == 0.0:
+            continue
+        # Rows w: each a violation measure w . Lambda <= s, with Lambda = impulses[e] + K c;
+        # minimise s >= 0 over (c, s).
+        rows = []
+        for i, (col, d) in enumerate(zip(starts, n_tangents, strict=True)):
+            if not np.any(k[col : col + 1 + d]):
+                continue  # this contact's impulse is unique: nothing to choose
+            row = np.zeros(len(split[e]))
+            row[col] = -1.0
+            rows.append(row)  # -Lambda_n <= s
+            if not d:
+                continue
+            moving, direction = slipping[i]
+            for face in faces[d]:
+                row = np.zeros(len(split[e]))  # face . Lambda_t - mu Lambda_n <= s
+                row[col + 1 : col + 1 + d], row[col] = face, -mu[i]
+                rows.append(row)
+                if moving[e]:  # face . (Lambda_t + mu Lambda_n dir) <= s
+                    row = row.copy()
+                    row[col] = mu[i] * face @ direction[e]
+                    rows.append(row)
+        if not rows:
+            continue
+        weights = np.array(rows)
+        cost = np.zeros(k.shape[1] + 1)
+        cost[-1] = 1.0
+        result = linprog(cost, A_ub=np.column_stack([weights @ k, -np.ones(len(rows))]),
+                         b_ub=-(weights @ impulses[e]),
+                         bounds=[(None, None)] * k.shape[1] + [(0.0, None)], method="highs")
+        if result.status != 0:
+            continue
+        candidate = impulses[e] + k @ result.x[:-1]
+        if violation(candidate, e) < violation(split[e], e):
+            split[e] = candidate
+    return split
 
 
 def clock_checks(clock: np.ndarray, horizon: float, tolerance: float) -> tuple[bool, float]:

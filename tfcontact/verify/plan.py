@@ -15,7 +15,9 @@ from tfcontact.verify.checks import (
     SLIP_THRESHOLD,
     clock_checks,
     collocation_impulses,
+    coulomb_split,
     friction_cone_violation,
+    impulse_freedom,
     maximal_dissipation_violation,
     painleve_note,
 )
@@ -187,9 +189,9 @@ def check_time_freezing_plan(plan: TimeFreezingPlan,
         smooth_force=lambda qk, vk, uk: np.asarray(forces(qk, vk, uk)).reshape(-1),
         contact_jacobian=jac,
     )
-    cone = friction_cone_violation(impulses, [c.mu for c in cls.contacts],
-                                   [c.n_tangents for c in cls.contacts])
+    mu, n_tangents = [c.mu for c in cls.contacts], [c.n_tangents for c in cls.contacts]
     normal_columns = np.cumsum([0] + [1 + c.n_tangents for c in cls.contacts])[:-1]
+    # The tolerance's scale from the minimum-norm impulses: the split below cannot raise it.
     largest_normal = float(np.max(impulses[:, normal_columns], initial=0.0))
     impulse_tolerance = options.cone_tolerance * max(largest_normal, 1e-12)
     notes.append(f"friction-cone tolerance: {options.cone_tolerance:g} x the largest normal "
@@ -210,8 +212,13 @@ def check_time_freezing_plan(plan: TimeFreezingPlan,
     painleve = painleve_note(cls, q_samples, closed)
     if painleve:
         notes.append(painleve)
-    dissipation, n_slipping = maximal_dissipation_violation(
-        impulses, slip, [c.mu for c in cls.contacts], [c.n_tangents for c in cls.contacts])
+    # Statically indeterminate contacts: Coulomb's law holds if SOME split of the impulse
+    # that the momentum balance admits obeys it (`coulomb_split`); single contacts keep theirs.
+    impulses = coulomb_split(impulses, impulse_freedom(plan.x_stages, plan.h, tableau.b,
+                                                       system.q_index, jac),
+                             mu, n_tangents, slip)
+    cone = friction_cone_violation(impulses, mu, n_tangents)
+    dissipation, n_slipping = maximal_dissipation_violation(impulses, slip, mu, n_tangents)
     notes.append(f"maximal dissipation checked on {n_slipping} slipping element-contacts "
                  f"(|B^T v| > {SLIP_THRESHOLD:g} m/s throughout, one direction)")
     monotone, clock_error = clock_checks(plan.x[:, system.clock_index], plan.horizon,
