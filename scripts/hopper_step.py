@@ -8,8 +8,8 @@ sphere (radius 2 cm) rests with its centre 2 cm above a surface, so the referenc
 heights are raised by the foot radius, and the end state by the step as well. Only the
 primitives the foot can reach are modelled (`Terrain.relevant_to`).
 
-The problem is built here from public functions (`hopper_robot`, `hopper_task`,
-`hopper_cls`) as `tfcontact.scenes.hopper.hopper_problem` builds the flat one; the solver
+The problem is `tfcontact.scenes.hopper.hopper_problem` of the raised task on the
+terrain (`hopper_problem(task, ground=terrain)`); the solver
 settings are the bench task's (Scholtes from sigma_0 = 0.1 to a residual of 1e-3, loose
 intermediate NLPs). Prints the status, whether the independent verification passed,
 the task's goals, and where the foot ended against the step.
@@ -43,21 +43,10 @@ import numpy as np
 
 def build(step: float, edge: float, rounding: float, smoothing: float):
     """(robot, terrain, problem) of the hop onto the step (`step` = 0: flat ground only)."""
-    from tfcontact.ocp import Constraint
-    from tfcontact.ocp.contact import ContactProblem
-    from tfcontact.ocp.goals import EndPosition, LiftOffs, Moves
     from tfcontact.robot import Box, Plane, Region, Terrain
-    from tfcontact.scenes.hopper import (
-        FOOT_RADIUS,
-        NO_SLIP_GAIN,
-        hopper_cls,
-        hopper_robot,
-        hopper_task,
-    )
-    from tfcontact.timefreezing import Inelastic, time_freeze
+    from tfcontact.scenes.hopper import FOOT_RADIUS, hopper_problem, hopper_task
 
     bench = hopper_task("bench")
-    robot, _flat_ground = hopper_robot()
     solids = [Plane(friction=bench.mu)]
     if step > 0:
         solids.append(Box(x=(edge, math.inf), top=step, rounding=rounding,
@@ -72,52 +61,16 @@ def build(step: float, edge: float, rounding: float, smoothing: float):
     waypoints = tuple((w[0], w[1] + dz, *w[2:]) for w, dz in zip(bench.waypoints, raise_by,
                                                                  strict=True))
     task = dataclasses.replace(bench, name="step", waypoints=waypoints)
-    cls = hopper_cls(robot, terrain, task)
-    tf = time_freeze(cls, method=Inelastic(gap_scale=task.gap_scale))
-    y, u = tf.y, tf.u
-    x = ca.vertcat(y[tf.q_index], y[tf.v_index])
-    clock = y[tf.clock_index]
-    samples = np.linspace(0.0, task.horizon, task.n_intervals + 1)
-    reference = task.reference(samples)
-    x_ref = ca.vertcat(*[ca.pw_lin(clock, ca.DM(samples), ca.DM(reference[:, i]))
-                         for i in range(8)])
-    error = x - x_ref
-    running = (ca.mtimes([error.T, ca.diag(ca.DM(task.state_weights)), error])
-               + ca.mtimes([u.T, ca.diag(ca.DM(task.control_weights)), u]))
-    final_error = x - ca.DM(task.x_end)
-    terminal = ca.mtimes([final_error.T, ca.diag(ca.DM(task.terminal_weights)), final_error])
-    lower, upper = np.asarray(task.lower), np.asarray(task.upper)
-    contact = cls.contacts[0]
-    slip = ca.mtimes(contact.tangents.T, cls.v)  # no slip while touching, as hopper_problem
-    no_slip = Constraint(slip[0] ** 2 - NO_SLIP_GAIN * contact.gap, upper=0.0)
-    problem = ContactProblem(
-        system=tf, q0=task.x0[:4], v0=task.x0[4:], horizon=task.horizon,
-        n_intervals=task.n_intervals, running_cost=running, terminal_cost=terminal,
-        u_lower=-task.control_bound, u_upper=task.control_bound,
-        q_lower=lower[:4], q_upper=upper[:4], v_lower=lower[4:], v_upper=upper[4:],
-        path=no_slip,
-        goals=(EndPosition("x", float(task.x_end[0]), task.goal_tolerance),
-               LiftOffs(0, task.lift_offs, task.lift_height), Moves()),
-    )
+    robot, _, problem = hopper_problem(task, ground=terrain)
     return robot, terrain, problem
 
 
 def options(attempts: int = 1):
-    """The bench task's settings (scenes.hopper.hopper_options' docstring); `attempts`
-    solves from perturbed guesses while a plan fails."""
-    from tfcontact.fesd import Fesd, RadauIIA
-    from tfcontact.mpcc import Homotopy, Ipopt, Scholtes
-    from tfcontact.ocp.contact import ContactSolverOptions
+    """The bench task's settings (`hopper_options("bench")`, the task layer's `fast`
+    preset); `attempts` solves from perturbed guesses while a plan fails."""
+    from tfcontact.scenes.hopper import hopper_options
 
-    return ContactSolverOptions(
-        scheme=RadauIIA(2), n_finite_elements=3, method=Fesd(gamma_h=0.9),
-        relaxation=Scholtes(),
-        homotopy=Homotopy(sigma_0=0.1, kappa=0.1, tolerance=1e-3, max_nlps=6,
-                          max_refinements=0),
-        nlp=Ipopt(tol=1e-8, max_iter=1000, intermediate_tol=1e-1, element_derivatives=True,
-                  threads=2),
-        attempts=attempts,
-    )
+    return dataclasses.replace(hopper_options("bench"), attempts=attempts)
 
 
 def main(argv: list[str] | None = None) -> int:

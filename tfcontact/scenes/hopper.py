@@ -174,8 +174,11 @@ def hopper_cls(robot, ground, task: HopperTask):
     )
 
 
-def hopper_problem(task: HopperTask | str = "short"):
+def hopper_problem(task: HopperTask | str = "short", *, ground=None):
     """The hopper OCP of TF-8 from the URDF: returns (robot, ground, ContactProblem).
+
+    `ground`: a `tfcontact.robot.Ground` or `Terrain` instead of the flat ground lowered
+    by the foot radius (scripts/hopper_step.py: a step).
 
     The running cost tracks the reference spline evaluated at the *clock* t (piecewise
     linear between the N + 1 control-grid samples: finer sampling only inflates the NLP)
@@ -190,7 +193,8 @@ def hopper_problem(task: HopperTask | str = "short"):
     from tfcontact.timefreezing import Inelastic, time_freeze
 
     task = hopper_task(task) if isinstance(task, str) else task
-    robot, ground = hopper_robot()
+    robot, flat = hopper_robot()
+    ground = flat if ground is None else ground
     cls = hopper_cls(robot, ground, task)
     tf = time_freeze(cls, method=Inelastic(gap_scale=task.gap_scale))
     y, u = tf.y, tf.u
