@@ -24,7 +24,8 @@ def test_monoped_plan_is_tf9_from_the_urdf():
     from tfcontact.scenes.monoped_exact import EXACT_TASK
 
     plan = PLANS["monoped"]
-    assert plan.solve is not None and plan.tasks == ("full", "reduced", "hand-set")
+    assert plan.build is None and plan.tasks == ("full", "reduced", "hand-set")
+    assert [s.name for s in plan.stages] == ["own solver"]
     mp = monoped_problem(EXACT_TASK)
     assert mp.robot.nq == 4 and mp.problem.n_intervals == 20 and mp.problem.horizon == 2.5
     scene = mp.scene()
@@ -43,7 +44,8 @@ def test_monoped_refuses_attempts(capsys, tmp_path):
 
 def test_unknown_plan_and_task_are_named(capsys, tmp_path):
     assert main(["plan", "walker", "--out", str(tmp_path)]) == 2
-    assert "unknown plan `walker`; available: hopper, monoped" in capsys.readouterr().err
+    assert "unknown plan `walker`; available: hopper, hopper-exact, monoped" in \
+        capsys.readouterr().err
     assert main(["plan", "hopper", "--task", "sprint", "--out", str(tmp_path)]) == 2
     assert "plan `hopper` has no task `sprint`; tasks: short, long" in capsys.readouterr().err
 

@@ -576,7 +576,7 @@ def test_a_plan_through_the_terrain_is_not_a_success(leg, tmp_path, monkeypatch)
     import json
 
     from tfcontact.scenes import plans
-    from tfcontact.scenes.plans import COLLISION, Plan, PlanOutcome
+    from tfcontact.scenes.plans import COLLISION, OwnSolver, Plan, PlanOutcome
 
     path, robot = leg
     t, q = _leg_motion()
@@ -587,7 +587,7 @@ def test_a_plan_through_the_terrain_is_not_a_success(leg, tmp_path, monkeypatch)
         return PlanOutcome(_trajectory(path, q, t, scene), robot, "converged", True,
                            "verification PASSED")
 
-    monkeypatch.setitem(plans.PLANS, "leg", Plan("leg", "a leg", None, ("only",), solve))
+    monkeypatch.setitem(plans.PLANS, "leg", Plan("leg", "a leg", ("only",), (OwnSolver(solve),)))
     report = plans.run_plan("leg", tmp_path / "out", verbose=False)
     assert (report.success, report.status) == (False, COLLISION)
     assert "knee_0" in report.summary and "t = 0.410 s" in report.summary
@@ -599,6 +599,7 @@ def test_a_plan_through_the_terrain_is_not_a_success(leg, tmp_path, monkeypatch)
     def solve_clear(task, out, verbose):
         return PlanOutcome(_trajectory(path, q, t, clear), robot, "converged", True, "ok")
 
-    monkeypatch.setitem(plans.PLANS, "leg", Plan("leg", "a leg", None, ("only",), solve_clear))
+    monkeypatch.setitem(plans.PLANS, "leg", Plan("leg", "a leg", ("only",),
+                                                    (OwnSolver(solve_clear),)))
     report = plans.run_plan("leg", tmp_path / "clear", verbose=False)
     assert (report.success, report.status) == (True, "converged")

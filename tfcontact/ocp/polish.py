@@ -141,6 +141,9 @@ class PolishOptions:
         tol, max_iter: IPOPT's.
         blas_threads: threads of IPOPT's BLAS during the solve (`blas_threads`; None: as
             set). The measured chains ran with 2 (the default on a 2-core machine).
+        lift_offs_at_control_jumps: `contact_phases` moves each lift-off straight from
+            stick to the nearest control jump k T / N, where the re-solve can model it
+            (else such a lift-off needs a slip phase before it).
         end_state_tolerance, gap_tolerance, cone_tolerance: the verification's.
     """
 
@@ -158,6 +161,7 @@ class PolishOptions:
     tol: float = 1e-9
     max_iter: int = 3000
     blas_threads: int | None = 2
+    lift_offs_at_control_jumps: bool = False
     # the verification's tolerances of a time-freezing plan
     end_state_tolerance: float = VerifyOptions.end_state_tolerance
     gap_tolerance: float = VerifyOptions.gap_tolerance
@@ -181,6 +185,9 @@ class PolishOptions:
                                "elements per interval are `substeps`")
         if self.blas_threads is not None:
             positive_int(self.blas_threads, "blas_threads")
+        if not isinstance(self.lift_offs_at_control_jumps, bool):
+            raise InvalidInput(f"`lift_offs_at_control_jumps` must be True or False, got "
+                               f"{self.lift_offs_at_control_jumps!r}")
         if not self.cone_margins or not all(0 < c <= 1 for c in self.cone_margins):
             raise InvalidInput(f"`cone_margins` must be numbers in (0, 1], got "
                                f"{self.cone_margins!r}")
@@ -302,7 +309,8 @@ def contact_phases(result: ContactResult, options: PolishOptions | None = None
     """The stick and flight phases of a time-freezing plan: stick while the gap stays below
     `flight_gap`, flight from the last sample before it rises above it until it falls
     below `contact_gap` again (one contact). For `polish_contact` a lift-off needs a slip
-    phase before it or a start at a control jump (see `TRANSITIONS`)."""
+    phase before it or a start at a control jump (see `TRANSITIONS`;
+    `PolishOptions.lift_offs_at_control_jumps` moves it to the nearest one)."""
     options = options or PolishOptions()
     system = result.physical.system
     cls = system.cls
@@ -321,6 +329,15 @@ def contact_phases(result: ContactResult, options: PolishOptions | None = None
         elif modes[-1] == FLIGHT and gaps[k] < options.contact_gap and t[k] < horizon - 1e-9:
             modes.append(STICK)
             starts.append(float(t[k]))
+    if options.lift_offs_at_control_jumps:
+        # A lift-off straight from stick needs a control jump (`TRANSITIONS`): the nearest
+        # one k T / N, if it keeps the phases in order.
+        step = horizon / result.problem.n_intervals
+        for i in range(1, len(modes)):
+            snapped = round(starts[i] / step) * step
+            upper = starts[i + 1] if i + 1 < len(starts) else horizon
+            if modes[i] == FLIGHT and modes[i - 1] == STICK and starts[i - 1] < snapped < upper:
+                starts[i] = float(snapped)
     ends = starts[1:] + [horizon]
     return tuple(Phase(m, s, e) for m, s, e in zip(modes, starts, ends, strict=True))
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -58,18 +59,140 @@ class PlanOutcome:
     summary: str
     files: tuple[Path, ...] = ()
     task: dict | None = None  # the goals measured (`TaskReport.to_dict()`), if stated
+    result: Any = None  # a discovery's `ContactResult`, for the stage after it
+    setup: PlanSetup | None = None  # the problem the stage solved
+
+
+@dataclass(frozen=True)
+class StageInput:
+    """What a stage of a plan's pipeline gets: the plan and task names, the staging
+    folder, the user's settings and the outcome of the stage before (None first)."""
+
+    plan: str
+    task: str
+    out: Path
+    verbose: bool
+    attempts: int | None
+    previous: PlanOutcome | None
+
+
+class Stage(ABC):
+    """One step of a plan's pipeline (`Plan.stages`), run in turn by `run_plan`."""
+
+    name: str
+    takes_attempts: bool = True  # `run_plan(attempts=...)` applies to it
+
+    @abstractmethod
+    def run(self, given: StageInput) -> PlanOutcome:
+        """The stage's outcome (the last stage's is written)."""
+
+
+@dataclass(frozen=True)
+class Discover(Stage):
+    """Find the contact sequence: the time-freezing homotopy (`solve_contact`, with the
+    plan's attempts) on the problem `build(task)` states, verified, goals checked."""
+
+    build: Callable[[str | None], PlanSetup]
+    name: str = "discover"
+
+    def run(self, given: StageInput) -> PlanOutcome:
+        from tfcontact.ocp.contact import solve_contact
+        from tfcontact.viz.plan import trajectory_from_result
+
+        setup = self.build(given.task)
+        robot, problem, options = setup.robot, setup.problem, setup.options
+        if given.attempts is not None:
+            options = dataclasses.replace(options, attempts=given.attempts)
+        if given.verbose:
+            print(f"plan {given.plan} ({given.task}): {robot.model.name}, nq = {robot.nq}, "
+                  f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
+        result = solve_contact(problem, options, verbose=given.verbose)
+        trajectory = trajectory_from_result(result, robot.spec, setup.scene,
+                                            task=result.task.to_dict())
+        return PlanOutcome(trajectory, robot, result.status, result.success,
+                           result.summary(), task=result.task.to_dict(), result=result,
+                           setup=setup)
+
+
+@dataclass(frozen=True)
+class ExactResolve(Stage):
+    """Re-solve the discovered plan exactly along its contact sequence (`tfcontact.ocp.
+    polish`: the hybrid system's own modes, impacts at the found times, no time-freezing
+    relaxation), verified against the exact-impact reference. One planar frictional
+    contact (`polish` refuses others). `options`: `PolishOptions`; default: lift-offs at
+    the nearest control jump."""
+
+    options: Any = None
+    name: str = "exact re-solve"
+
+    def run(self, given: StageInput) -> PlanOutcome:
+        from tfcontact.ocp.polish import PolishOptions, contact_phases, polish_contact
+        from tfcontact.viz.plan import trajectory_from_polished
+
+        found = given.previous
+        if found is None or found.result is None or found.setup is None:
+            raise InvalidInput("an exact re-solve needs a discovery stage before it "
+                               "(Plan stages (Discover(...), ExactResolve()))")
+        if not found.result.ocp.success:  # the homotopy found no contact sequence to follow
+            return found
+        options = self.options or PolishOptions(lift_offs_at_control_jumps=True)
+        problem, robot = found.setup.problem, found.setup.robot
+        phases = contact_phases(found.result, options)
+        plan = polish_contact(problem, phases, options, guess=found.result,
+                              verbose=given.verbose)
+        task = _polished_task(plan, problem)
+        status = plan.status if not plan.success else \
+            ("converged" if task.passed else task.status)
+        summary = f"discovery: {found.status}\n{plan.summary()}\n{task.summary()}"
+        solver = {"status": status, "objective": plan.cost,
+                  "discovery": {"status": found.status, "cost": found.result.ocp.cost},
+                  "phases": [dataclasses.asdict(p) for p in plan.phases],
+                  "method": "exact re-solve along the discovered contact sequence "
+                            "(tfcontact.ocp.polish)",
+                  "steps_per_interval": list(plan.substeps)}
+        trajectory = trajectory_from_polished(plan, problem.system.cls, robot.spec,
+                                              found.setup.scene, solver=solver,
+                                              task=task.to_dict())
+        return PlanOutcome(trajectory, robot, status, plan.success and task.passed, summary,
+                           task=task.to_dict(), setup=found.setup)
+
+
+@dataclass(frozen=True)
+class OwnSolver(Stage):
+    """A scene's own solver, `solve(task, out, verbose)` (the monoped's chain)."""
+
+    solve: Callable[[str, Path, bool], PlanOutcome]
+    name: str = "own solver"
+    takes_attempts: bool = False
+
+    def run(self, given: StageInput) -> PlanOutcome:
+        if given.attempts is not None:
+            raise InvalidInput(f"plan `{given.plan}` has no attempts to set (its chain "
+                               "restarts itself)")
+        return self.solve(given.task, given.out, given.verbose)
 
 
 @dataclass(frozen=True)
 class Plan:
-    """A named robot plan: `build(task)` gives its `PlanSetup` (task None: the first),
-    solved by `solve_contact`; or `solve(task, out, verbose)` solves it its own way."""
+    """A named robot plan as data: its tasks and the stages `run_plan` runs in turn (e.g.
+    discover the contact sequence, then re-solve exactly along it)."""
 
     name: str
     summary: str
-    build: Callable[[str | None], PlanSetup] | None
     tasks: tuple[str, ...]
-    solve: Callable[[str, Path, bool], PlanOutcome] | None = None
+    stages: tuple[Stage, ...]
+
+    def __post_init__(self) -> None:
+        if not self.stages or not all(isinstance(s, Stage) for s in self.stages):
+            raise InvalidInput(f"plan `{self.name}` needs stages (Discover, ExactResolve, "
+                               "OwnSolver, ...)")
+
+    @property
+    def build(self) -> Callable[[str | None], PlanSetup] | None:
+        """The problem builder of a plan that starts with a `Discover` (sweeps perturb
+        its start), else None."""
+        first = self.stages[0]
+        return first.build if isinstance(first, Discover) else None
 
 
 def _flat(ground: Any) -> dict:
@@ -148,8 +271,15 @@ PLANS: dict[str, Plan] = {
         name="hopper",
         summary="planar one-legged hopper (robots/hopper.urdf), TF-8: jump to x = 0.7 "
                 "(--task long: two jumps to x = 1.3)",
-        build=_hopper,
         tasks=("short", "long"),
+        stages=(Discover(_hopper),),
+    ),
+    "hopper-exact": Plan(
+        name="hopper-exact",
+        summary="the hopper's one-hop bench task (to x = 1 in 1 s): discovered by the "
+                "time-freezing homotopy, then re-solved exactly along its contact sequence",
+        tasks=("bench",),
+        stages=(Discover(_hopper), ExactResolve()),
     ),
     "monoped": Plan(
         name="monoped",
@@ -157,9 +287,8 @@ PLANS: dict[str, Plan] = {
                 "(about an hour; --task reduced: one hole, to x = 1, 6 min; --task "
                 "hand-set: the hops on a hand-set schedule instead of a searched one): "
                 "time-freezing homotopy, then the exact re-solve along its contact sequence",
-        build=None,
         tasks=("full", "reduced", "hand-set"),
-        solve=_monoped,
+        stages=(OwnSolver(_monoped),),
     ),
 }
 
@@ -185,7 +314,7 @@ def task_plan(source: str | Path) -> Plan:
         return PlanSetup(setup.robot, setup.problem, setup.options, setup.scene)
 
     return Plan(name=data.name, summary=data.description or f"task file {path}",
-                build=build, tasks=("task",))
+                tasks=("task",), stages=(Discover(build),))
 
 
 def plan_named(name: str | Path) -> Plan:
@@ -209,16 +338,14 @@ def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
     whatever the outcome (a failed plan's last iterate is saved with its status); an
     interrupt (`tfcontact.errors.Interrupted`) leaves `out_dir` as it was.
     """
-    from tfcontact.ocp.contact import solve_contact
     from tfcontact.scenes.output import OutputFolder
-    from tfcontact.viz.plan import trajectory_from_result
 
     plan = plan_named(name)
     name = plan.name
     if task is not None and task not in plan.tasks:
         raise InvalidInput(f"plan `{name}` has no task `{task}`; tasks: {', '.join(plan.tasks)}")
     if attempts is not None:
-        if plan.solve is not None:
+        if not all(s.takes_attempts for s in plan.stages):
             raise InvalidInput(f"plan `{name}` has no attempts to set (its chain restarts "
                                "itself)")
         positive_int(attempts, "attempts")
@@ -227,21 +354,11 @@ def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
     folder.check()
     start = time.perf_counter()
     with folder.staging() as stage:
-        if plan.solve is not None:
-            outcome = plan.solve(task, stage, verbose)
-        else:
-            setup = plan.build(task)
-            robot, problem, options = setup.robot, setup.problem, setup.options
-            if attempts is not None:
-                options = dataclasses.replace(options, attempts=attempts)
-            if verbose:
-                print(f"plan {name} ({task}): {robot.model.name}, nq = {robot.nq}, "
-                      f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
-            result = solve_contact(problem, options, verbose=verbose)
-            trajectory = trajectory_from_result(result, robot.spec, setup.scene,
-                                                task=result.task.to_dict())
-            outcome = PlanOutcome(trajectory, robot, result.status, result.success,
-                                  result.summary(), task=result.task.to_dict())
+        outcome = None
+        for step in plan.stages:
+            if verbose and len(plan.stages) > 1:
+                print(f"plan {name} ({task}): stage {step.name}", flush=True)
+            outcome = step.run(StageInput(name, task, stage, verbose, attempts, outcome))
         collisions, collision_files = _collisions(outcome, stage)
         if collisions.get("passed") is False:
             # a physical, verified plan whose knee or base goes through the terrain (or

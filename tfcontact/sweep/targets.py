@@ -184,7 +184,9 @@ def sweep_target(plan: str) -> SweepTarget:
     """The `SweepTarget` of the plan named `plan`."""
     if plan in SWEEP_TARGETS:
         return SWEEP_TARGETS[plan]
-    sweepable = sorted({*SWEEP_TARGETS, *(n for n, p in PLANS.items() if p.build is not None)})
+    # a sweep solves one contact problem per case: plans of a single discovery stage
+    sweepable = sorted({*SWEEP_TARGETS, *(n for n, p in PLANS.items()
+                                          if p.build is not None and len(p.stages) == 1)})
     if plan not in PLANS:
         try:
             found = plan_named(plan)  # a task file or a shipped task
@@ -196,4 +198,8 @@ def sweep_target(plan: str) -> SweepTarget:
         raise InvalidInput(f"plan `{plan}` solves itself in its own chain, with no single "
                            f"contact problem whose start a sweep could perturb; sweepable "
                            f"plans: {', '.join(sweepable)}")
+    if len(PLANS[plan].stages) > 1:
+        raise InvalidInput(f"plan `{plan}` has stages after its discovery "
+                           f"({', '.join(s.name for s in PLANS[plan].stages[1:])}) that a "
+                           f"sweep does not run; sweepable plans: {', '.join(sweepable)}")
     return PlanTarget(plan, PLANS[plan].tasks)

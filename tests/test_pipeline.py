@@ -1,0 +1,106 @@
+"""One pipeline for every plan: a named plan is data (tasks, stages) and `run_plan` runs
+its stages in turn, each given the outcome of the one before."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import pytest
+
+from tfcontact.errors import InvalidInput
+from tfcontact.scenes import plans
+from tfcontact.scenes.plans import (
+    PLANS,
+    Discover,
+    ExactResolve,
+    OwnSolver,
+    Plan,
+    PlanOutcome,
+    Stage,
+    StageInput,
+)
+from tfcontact.sweep import SweepSpec
+
+
+@dataclass(frozen=True)
+class _Record(Stage):
+    """A stage that notes what it was given and passes a new status on."""
+
+    status: str
+    seen: list
+    name: str = "record"
+
+    def run(self, given: StageInput) -> PlanOutcome:
+        self.seen.append((given.plan, given.task, None if given.previous is None
+                          else given.previous.status))
+        return PlanOutcome(None, None, self.status, self.status == "converged", self.status)
+
+
+def test_stages_run_in_turn_and_the_last_outcome_is_written(tmp_path, monkeypatch):
+    seen: list = []
+    plan = Plan("two", "two stages", ("only",),
+                (_Record("first", seen), _Record("converged", seen)))
+    monkeypatch.setitem(plans.PLANS, "two", plan)
+    report = plans.run_plan("two", tmp_path / "out", verbose=False)
+    assert seen == [("two", "only", None), ("two", "only", "first")]
+    assert (report.success, report.status) == (True, "converged")
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["status"] == "converged"
+
+
+def test_plans_are_data():
+    assert [s.name for s in PLANS["hopper"].stages] == ["discover"]
+    assert [s.name for s in PLANS["hopper-exact"].stages] == ["discover", "exact re-solve"]
+    assert [s.name for s in PLANS["monoped"].stages] == ["own solver"]
+    assert PLANS["hopper"].build is PLANS["hopper"].stages[0].build
+    assert PLANS["monoped"].build is None
+    with pytest.raises(InvalidInput, match="needs stages"):
+        Plan("none", "no stages", ("only",), ())
+
+
+def test_an_exact_resolve_needs_a_discovery_before_it(tmp_path):
+    given = StageInput("p", "t", tmp_path, False, None, None)
+    with pytest.raises(InvalidInput, match="needs a discovery stage before it"):
+        ExactResolve().run(given)
+
+
+def test_attempts_only_for_plans_whose_stages_take_them(tmp_path, monkeypatch):
+    monkeypatch.setitem(plans.PLANS, "own", Plan("own", "own", ("only",),
+                                                 (OwnSolver(lambda t, o, v: None),)))
+    with pytest.raises(InvalidInput, match="has no attempts to set"):
+        plans.run_plan("own", tmp_path / "out", attempts=2, verbose=False)
+
+
+def test_a_sweep_refuses_stages_it_would_not_run():
+    with pytest.raises(InvalidInput, match="has stages after its discovery \\(exact re-solve\\)"):
+        SweepSpec("hopper-exact")
+
+
+@pytest.mark.slow
+def test_hopper_exact_is_discovered_then_resolved_exactly(tmp_path):
+    """`tfcontact plan hopper-exact`: the bench hop found by the time-freezing homotopy,
+    then re-solved along its contact sequence with the lift-off at a control jump; the
+    exact plan agrees with the exact-impact replay far closer than the discovery."""
+    from tfcontact.cli import main
+
+    out = tmp_path / "exact"
+    assert main(["plan", "hopper-exact", "--out", str(out), "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "converged" and summary["success"]
+    assert "discovery: converged" in summary["summary"]
+    assert "polish: verification PASSED" in summary["summary"]
+    sidecar = json.loads((out / "trajectory.json").read_text())
+    phases = sidecar["solver"]["phases"]
+    assert [p["mode"] for p in phases][:2] == ["stick", "flight"]
+    # the lift-off moved to a control jump k T / N (T / N = 0.05 s)
+    assert phases[1]["start"] / 0.05 == pytest.approx(round(phases[1]["start"] / 0.05))
+    assert summary["task_checks"]["passed"]
+
+
+def test_discover_is_the_build_path_of_task_files(tmp_path):
+    from tfcontact.scenes.plans import task_plan
+    from tfcontact.task import shipped_tasks
+
+    plan = task_plan(str(shipped_tasks()["hopper-vertical"]))
+    assert [type(s) for s in plan.stages] == [Discover]
