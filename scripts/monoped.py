@@ -105,7 +105,7 @@ def plan_checks(mp: MonopedProblem, result: ContactResult) -> dict:
 
 
 def to_trajectory(mp: MonopedProblem, result: ContactResult):
-    from tfcontact.viz.plan import trajectory_from_result
+    from tfcontact.plan_format.adapters import trajectory_from_result
 
     return trajectory_from_result(result, robot_spec(), mp.scene())
 

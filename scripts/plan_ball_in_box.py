@@ -37,6 +37,7 @@ from matplotlib.figure import Figure
 
 from tfcontact.mpcc import RELAXATIONS
 from tfcontact.ocp.contact import ContactSolverOptions, solve_contact
+from tfcontact.plan_format.adapters import trajectory_from_result
 from tfcontact.scenes.ball_in_box import TF2_WALLS, circle_reference
 from tfcontact.scenes.particle_ocps import (
     BALL_RADIUS,
@@ -44,7 +45,7 @@ from tfcontact.scenes.particle_ocps import (
     box_circle_options,
     box_circle_problem,
 )
-from tfcontact.viz.plan import save_plan, trajectory_from_result
+from tfcontact.viz.plan import save_plan
 
 RADIUS = 1.0
 # (x, y) of the problem is (x, z) of the viewer; world normals of the walls (into the box)

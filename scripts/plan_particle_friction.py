@@ -17,8 +17,9 @@ import numpy as np
 from tfcontact.fesd import RadauIIA
 from tfcontact.mpcc import RELAXATIONS
 from tfcontact.ocp.contact import ContactSolverOptions, solve_contact
+from tfcontact.plan_format.adapters import trajectory_from_result
 from tfcontact.scenes.particle_ocps import BALL_GROUND, BALL_ROBOT, particle_friction_problem
-from tfcontact.viz.plan import save_plan, trajectory_from_result
+from tfcontact.viz.plan import save_plan
 
 
 def main(argv: list[str] | None = None) -> int:

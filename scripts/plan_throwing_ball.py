@@ -24,8 +24,9 @@ from matplotlib.figure import Figure
 from tfcontact.fesd import RadauIIA
 from tfcontact.mpcc import RELAXATIONS
 from tfcontact.ocp.contact import ContactSolverOptions, solve_contact
+from tfcontact.plan_format.adapters import trajectory_from_result
 from tfcontact.scenes.particle_ocps import BALL_GROUND, BALL_ROBOT, throwing_ball_problem
-from tfcontact.viz.plan import save_plan, trajectory_from_result
+from tfcontact.viz.plan import save_plan
 
 TARGET = (4.0, 0.5)
 

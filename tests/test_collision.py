@@ -12,6 +12,7 @@ import pinocchio as pin
 import pytest
 
 from tfcontact.errors import InvalidInput
+from tfcontact.plan_format.trajectory import Trajectory
 from tfcontact.robot import ContactSpec, Ground, load_robot
 from tfcontact.verify.collision import (
     CollisionOptions,
@@ -30,7 +31,6 @@ from tfcontact.viz.collision_figure import (
     scene_obstacles,
     trajectory_collisions,
 )
-from tfcontact.viz.trajectory import Trajectory
 
 INERTIAL = ('<inertial><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" '
             'iyz="0" izz="0.01"/></inertial>')

@@ -20,8 +20,7 @@ import pytest
 from viz_hop import project_hop_trajectory
 
 from tfcontact.errors import InvalidInput, TrajectoryFileError
-from tfcontact.viz import FORMAT_VERSION, Trajectory, cli_check, load_trajectory, save_trajectory
-from tfcontact.viz.plan import (
+from tfcontact.plan_format.adapters import (
     CheckTolerances,
     check_plan,
     describe_robot,
@@ -29,7 +28,8 @@ from tfcontact.viz.plan import (
     find_impacts,
     urdf_location,
 )
-from tfcontact.viz.trajectory import array_sha256, sidecar_sha256
+from tfcontact.plan_format.trajectory import array_sha256, sidecar_sha256
+from tfcontact.viz import FORMAT_VERSION, Trajectory, cli_check, load_trajectory, save_trajectory
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / "scripts" / "check_trajectory.py"

@@ -17,6 +17,7 @@ import umsgpack
 from viz_hop import CONTACTS, hop_trajectory, hopper_models, project_hop_trajectory
 
 from tfcontact.errors import InvalidInput, TrajectoryFileError
+from tfcontact.plan_format.trajectory import sidecar_path
 from tfcontact.viz import (
     FORMAT_VERSION,
     Trajectory,
@@ -27,7 +28,6 @@ from tfcontact.viz import (
     save_trajectory,
 )
 from tfcontact.viz.meshcat_replay import HOLE_WIDTH, RecordingWindow, hole_meshes, simplify_mesh
-from tfcontact.viz.trajectory import sidecar_path
 
 #: Stated bounds on the standalone page of the hopper: plain, measured 0.89 MB (meshcat's
 #: inlined viewer script main.min.js alone is 0.85 MB); compressed (the default), 0.30 MB.
@@ -84,7 +84,7 @@ def test_save_keeps_old_files_when_interrupted(tmp_path, monkeypatch):
     def boom(*args, **kwargs):
         raise OSError("disk full")
 
-    monkeypatch.setattr("tfcontact.viz.trajectory.os.replace", boom)
+    monkeypatch.setattr("tfcontact.plan_format.trajectory.os.replace", boom)
     with pytest.raises(OSError, match="disk full"):
         save_trajectory(tmp_path / "a.npz", _small(n=9))
     assert (npz.read_bytes(), sidecar.read_bytes()) == before

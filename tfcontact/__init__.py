@@ -19,10 +19,11 @@ Layers, data flowing down the list (ARCHITECTURE.md):
 * `tfcontact.mpcc`: relaxations and homotopy for MPCCs, solved with IPOPT.
 * `tfcontact.ocp`: optimal control problems, results, task goals, the exact re-solve.
 * `tfcontact.verify`: independent checks against the original system (beside `ocp`).
+* `tfcontact.plan_format`: the plan format (trajectory files, adapters from results).
 * `tfcontact.task`: planning tasks as data (TOML task files) -> contact problems.
 * `tfcontact.scenes`: reference problems and the named plans of the command line.
 * `tfcontact.sweep`: stability sweeps on Dask.
-* `tfcontact.viz`: trajectory files, meshcat replay, figures.
+* `tfcontact.viz`: meshcat replay and figures of plans.
 
 The names below are imported on first use, so `import tfcontact` stays light.
 """
@@ -53,7 +54,7 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "load_task": ("tfcontact.task", "load_task"),
     "build_task": ("tfcontact.task", "build_task"),
     "run_plan": ("tfcontact.scenes", "run_plan"),
-    "trajectory": ("tfcontact.viz.plan", "trajectory_from_result"),
+    "trajectory": ("tfcontact.plan_format.adapters", "trajectory_from_result"),
     "replay": ("tfcontact.viz", "replay"),
     "load_trajectory": ("tfcontact.viz", "load_trajectory"),
     "Interrupted": ("tfcontact.errors", "Interrupted"),

@@ -6,7 +6,14 @@ is a `Ground` half-space or a `Terrain` of primitives (`Plane`, `Box`, `Hole`).
 
 from tfcontact.robot.contact import ContactTerms, Ground, contact_terms
 from tfcontact.robot.loading import REPO_ROOT, Robot, load_robot, project_robots
-from tfcontact.robot.spec import BASE_COORDINATES, BASES, PLANAR_BASES, ContactSpec, RobotSpec
+from tfcontact.robot.spec import (
+    BASE_COORDINATES,
+    BASES,
+    PLANAR_BASES,
+    ContactSpec,
+    RobotSpec,
+    dof_units,
+)
 from tfcontact.robot.terrain import Box, Hole, Plane, Region, Terrain
 from tfcontact.robot.twin import RobotTwin
 
@@ -25,6 +32,7 @@ __all__ = [
     "Robot",
     "RobotSpec",
     "RobotTwin",
+    "dof_units",
     "Terrain",
     "contact_terms",
     "load_robot",

@@ -97,7 +97,7 @@ class Discover(Stage):
 
     def run(self, given: StageInput) -> PlanOutcome:
         from tfcontact.ocp.contact import solve_contact
-        from tfcontact.viz.plan import trajectory_from_result
+        from tfcontact.plan_format.adapters import trajectory_from_result
 
         setup = self.build(given.task)
         robot, problem, options = setup.robot, setup.problem, setup.options
@@ -127,7 +127,7 @@ class ExactResolve(Stage):
 
     def run(self, given: StageInput) -> PlanOutcome:
         from tfcontact.ocp.polish import PolishOptions, contact_phases, polish_contact
-        from tfcontact.viz.plan import trajectory_from_polished
+        from tfcontact.plan_format.adapters import trajectory_from_polished
 
         found = given.previous
         if found is None or found.result is None or found.setup is None:
@@ -212,6 +212,7 @@ def _monoped(task: str, out: Path, verbose: bool) -> PlanOutcome:
     finds the reduced task's hop, the exact re-solve makes it a verified plan ("reduced"),
     tiled three times for TF-9's task on a searched schedule ("full") or on the hand-set
     one ("hand-set")."""
+    from tfcontact.plan_format.adapters import trajectory_from_polished
     from tfcontact.scenes.monoped_exact import (
         HAND_SET_SCHEDULE,
         full_exact_plan,
@@ -219,7 +220,6 @@ def _monoped(task: str, out: Path, verbose: bool) -> PlanOutcome:
         reduced_exact_plan,
         save_exact_plan,
     )
-    from tfcontact.viz.plan import trajectory_from_polished
 
     if task == "reduced":
         chain = reduced_exact_plan(verbose)

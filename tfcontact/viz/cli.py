@@ -10,8 +10,8 @@ import time
 import webbrowser
 
 from tfcontact.errors import TrajectoryFileError
+from tfcontact.plan_format.trajectory import load_trajectory
 from tfcontact.viz.meshcat_replay import replay
-from tfcontact.viz.trajectory import load_trajectory
 
 
 def cli_replay(args: argparse.Namespace) -> int:
@@ -72,7 +72,7 @@ def cli_check(args: argparse.Namespace) -> int:
     """Run `tfcontact check TRAJECTORY`: is the file intact, and does the plan hold?
 
     Loading checks the file (checksums, format version, content: `load_trajectory`);
-    `tfcontact.viz.plan.check_plan` then checks the physics from the recorded data and
+    `tfcontact.plan_format.adapters.check_plan` then checks the physics from the recorded data and
     prints one line per check: status and verification, clock, gaps, the rebuilt robot,
     forward-kinematics gaps and the impacts (frozen pieces, recorded impulses, touchdowns
     inside a sampling interval) with their momentum balance.
@@ -86,7 +86,7 @@ def cli_check(args: argparse.Namespace) -> int:
         0 if the file is intact and every check passes, 1 if a physics check fails, 2 if
         the file is missing, damaged or foreign (one line on stderr names the problem).
     """
-    from tfcontact.viz.plan import CheckTolerances, check_plan
+    from tfcontact.plan_format.adapters import CheckTolerances, check_plan
 
     try:
         traj = load_trajectory(args.trajectory)

@@ -20,6 +20,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from tfcontact.errors import InvalidInput
+from tfcontact.plan_format.trajectory import Trajectory, physical_time
 from tfcontact.robot import Robot, RobotSpec, Terrain, load_robot
 from tfcontact.verify.collision import (
     CollisionOptions,
@@ -30,7 +31,6 @@ from tfcontact.verify.collision import (
     halfspace_obstacle,
     terrain_obstacles,
 )
-from tfcontact.viz.trajectory import Trajectory, physical_time
 
 
 def scene_obstacles(traj: Trajectory) -> tuple[Obstacle, ...]:

@@ -19,6 +19,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from tfcontact.errors import InvalidInput, TfcontactError
+from tfcontact.plan_format.trajectory import PhysicalSamples, Trajectory, physical_time
 from tfcontact.robot import BASE_COORDINATES, Terrain
 from tfcontact.viz.labels import Labels, trajectory_labels
 from tfcontact.viz.terrain_view import (
@@ -28,7 +29,6 @@ from tfcontact.viz.terrain_view import (
     surface_tangents,
     terrain_section,
 )
-from tfcontact.viz.trajectory import PhysicalSamples, Trajectory, physical_time
 
 _FORMATS = ("png", "svg")
 _FROZEN_STYLE = {"color": "tab:blue", "alpha": 0.15, "lw": 0}

@@ -13,28 +13,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from tfcontact.robot import BASE_COORDINATES
-from tfcontact.viz.trajectory import Trajectory
+from tfcontact.plan_format.trajectory import Trajectory
+from tfcontact.robot import BASE_COORDINATES, dof_units
 
 _RATE_UNITS = {"m": "m/s", "rad": "rad/s", "-": "-"}
-
-
-def dof_units(model: Any, base: str) -> list[tuple[str, str]]:
-    """(joint, unit of the coordinate) per velocity entry of a Pinocchio model."""
-    out: list[tuple[str, str]] = []
-    for j in range(1, model.njoints):
-        joint, name = model.joints[j], model.names[j]
-        kind = joint.shortname()
-        if name == "root_joint" and base in BASE_COORDINATES:
-            units = [unit for _, unit in BASE_COORDINATES[base]]
-        elif "Prismatic" in kind or kind[:11] == "JointModelP" or "Translation" in kind:
-            units = ["m"] * joint.nv
-        elif ("Revolute" in kind or kind[:11] == "JointModelR" or "SphericalZYX" in kind):
-            units = ["rad"] * joint.nv
-        else:
-            units = ["-"] * joint.nv
-        out += [(name, unit) for unit in units]
-    return out
 
 
 def label(name: str, unit: str | None) -> str:

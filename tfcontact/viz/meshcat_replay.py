@@ -35,8 +35,8 @@ import numpy as np
 import pinocchio as pin
 
 from tfcontact.errors import InvalidInput
+from tfcontact.plan_format.trajectory import Trajectory, load_trajectory, physical_time
 from tfcontact.viz.terrain_view import DrawnBox, scene_terrain, terrain_boxes
-from tfcontact.viz.trajectory import Trajectory, load_trajectory, physical_time
 
 ROOT = "tfcontact"
 CONTACT_ON_COLOR = 0x2CA02C  # green: gap <= contact_tol
@@ -749,7 +749,7 @@ def replay(
     html_path = html_bytes = None
     if html is not None:
         html_path = Path(html)
-        from tfcontact.viz.trajectory import atomic_write
+        from tfcontact.plan_format.trajectory import atomic_write
 
         text = vis.static_html()
         data_bytes = text.encode("utf-8")

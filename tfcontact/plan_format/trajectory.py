@@ -46,7 +46,7 @@ File layout (format version 2), `NAME.npz` + `NAME.json`:
     repository's `robots/` or an example-robot-data name; `base`; `locked_joints`;
     `contacts`: frame names and radii; `locked_positions`), i.e. `RobotSpec.to_dict()`;
   - `model`: the robot without the repository (optional, filled by
-    `tfcontact.viz.plan`): `urdf` (`locate`: "project" = `robots/NAME.urdf` of tfcontact,
+    `tfcontact.plan_format.adapters`): `urdf` (`locate`: "project" = `robots/NAME.urdf`,
     "example-robot-data" = that package's robot NAME, or "path"; `name`; `sha256` of the
     URDF's bytes), `base` and `base_meaning`, `gravity` [m/s^2], and the lists
     `coordinates` (nq), `velocities` (nv) and `controls` (nu) of `{"name", "unit"}`
@@ -623,7 +623,7 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
         if not p.is_file():
             raise TrajectoryFileError(
                 f"{str(p)!r} does not exist: a trajectory is the pair {npz_path.name} + "
-                f"{json_path.name}, written by tfcontact.viz.save_trajectory; "
+                f"{json_path.name}, written by tfcontact.plan_format.save_trajectory; "
                 f"{RESTORE}"
             )
     meta = _read_sidecar(json_path)
@@ -663,7 +663,7 @@ def _read_sidecar(json_path: Path) -> dict[str, Any]:
         raise TrajectoryFileError(
             f"{str(json_path)!r} is not a tfcontact trajectory sidecar "
             f"(expected \"format\": \"{FORMAT}\"): pass the NAME.json written by "
-            "tfcontact.viz.save_trajectory"
+            "tfcontact.plan_format.save_trajectory"
         )
     version = meta.get("format_version")
     if isinstance(version, bool) or version not in READABLE_VERSIONS:
