@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import casadi as ca
 import numpy as np
 import pytest
+from two_contact_box import pushed_box_problem, solved_plan
 
 from tfcontact.fesd import RadauIIA
 from tfcontact.fesd.tableau import as_tableau
@@ -90,52 +90,18 @@ def test_a_single_contact_keeps_its_impulses():
 
 # ---------------------------------------------------------------------- a solved plan
 
-LOW_BOX_URDF = f"""<?xml version="1.0"?>
-<robot name="low_box">
-  <link name="body">
-    <inertial><mass value="2.0"/><inertia ixx="0.05" iyy="0.05" izz="0.05" ixy="0" ixz="0"
-      iyz="0"/></inertial>
-  </link>
-  <link name="front"/><link name="back"/>
-  <joint name="front_joint" type="fixed"><parent link="body"/><child link="front"/>
-    <origin xyz="{HALF_SPAN} 0 {-DEPTH}"/></joint>
-  <joint name="back_joint" type="fixed"><parent link="body"/><child link="back"/>
-    <origin xyz="{-HALF_SPAN} 0 {-DEPTH}"/></joint>
-</robot>
-"""
-
-
 def low_box_problem(tmp_path, mu):
     """A 2 kg box on two 0.1 m contact spheres whose centres lie 0.1 m below its centre of
     mass, pushed from rest towards x = 0.15 m in 0.6 s (4 control intervals, |u_x| <= 20
     N): the friction turns it forwards, so the back contact carries more weight and, when
     it slides, more friction."""
-    from tfcontact.ocp import ContactProblem
-    from tfcontact.robot import ContactSpec, load_robot
-    from tfcontact.timefreezing import from_robot, time_freeze
-
-    path = tmp_path / "low_box.urdf"
-    path.write_text(LOW_BOX_URDF)
-    robot = load_robot(str(path), base="planar",
-                       contacts=(ContactSpec("front", 0.1), ContactSpec("back", 0.1)))
-    tf = time_freeze(from_robot(robot, mu=mu, a_n=50.0, actuated=["root_joint"]))
-    x = tf.y[tf.q_index][0]
-    return ContactProblem(system=tf, q0=[0.0, 0.2, 0.0], v0=[0.0, 0.0, 0.0], horizon=0.6,
-                          n_intervals=4, u_lower=[-20.0, 0.0, 0.0], u_upper=[20.0, 0.0, 0.0],
-                          running_cost=10 * (x - 0.15) ** 2 + 1e-3 * ca.sumsqr(tf.u))
+    return pushed_box_problem(tmp_path, mu, HALF_SPAN, DEPTH)
 
 
 @pytest.fixture(scope="module")
 def low_box(tmp_path_factory) -> TimeFreezingPlan:
     """`low_box_problem` solved (measured: 3 s)."""
-    from tfcontact.ocp import ContactSolverOptions, solve_contact
-    from tfcontact.ocp.contact import time_freezing_plan
-
-    problem = low_box_problem(tmp_path_factory.mktemp("low_box"), MU)
-    options = ContactSolverOptions()
-    result = solve_contact(problem, options, verbose=False)
-    assert result.ocp.success, result.message
-    return time_freezing_plan(problem, result.system, result.ocp, result.physical, options)
+    return solved_plan(low_box_problem(tmp_path_factory.mktemp("low_box"), MU))
 
 
 def test_a_box_pushed_on_contacts_below_its_centre_of_mass_passes_the_cone(low_box):

@@ -5,6 +5,7 @@ four frictional corner contacts."""
 import casadi as ca
 import numpy as np
 import pytest
+from two_contact_box import load_box
 
 from tfcontact.errors import IncompatibleOptions, InvalidInput
 from tfcontact.timefreezing.cls import ComplementarityLagrangianSystem, Contact
@@ -408,33 +409,14 @@ def test_random_tilted_drops_end_at_rest_without_gaining_energy(rng):
         np.testing.assert_allclose(sim.x[-1, 1:], [HALF_HEIGHT, 0, 0, 0, 0], atol=1e-9)
 
 
-BOX_URDF = """<?xml version="1.0"?>
-<robot name="box">
-  <link name="body">
-    <inertial><mass value="2.0"/><inertia ixx="0.05" iyy="0.05" izz="0.05" ixy="0" ixz="0"
-      iyz="0"/></inertial>
-  </link>
-  <link name="front"/><link name="back"/>
-  <joint name="front_joint" type="fixed"><parent link="body"/><child link="front"/>
-    <origin xyz="0.5 0 -0.249"/></joint>
-  <joint name="back_joint" type="fixed"><parent link="body"/><child link="back"/>
-    <origin xyz="-0.5 0 -0.249"/></joint>
-</robot>
-"""
-
-
 def test_urdf_box_through_the_robot_layer_slides_to_the_coulomb_stop(tmp_path):
     """The same sliding box from a URDF (planar base, two 1 mm contact spheres whose
     centres are 0.249 m below the body's): the CLS of `from_robot` is simulated as is.
     Stop at v0 / (mu g); the friction acts at the spheres' centres, so the normal forces
     split as m g / 2 (1 +- mu 0.249 / a)."""
-    from tfcontact.robot import ContactSpec, load_robot
     from tfcontact.timefreezing import from_robot
 
-    path = tmp_path / "box.urdf"
-    path.write_text(BOX_URDF)
-    robot = load_robot(str(path), base="planar",
-                       contacts=(ContactSpec("front", 0.001), ContactSpec("back", 0.001)))
+    robot = load_box(tmp_path, 0.5, 0.249, 0.001)
     mu, v0 = 0.4, 2.0
     cls = from_robot(robot, mu=mu)
     stop = v0 / (mu * G)
