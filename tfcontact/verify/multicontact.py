@@ -78,7 +78,7 @@ from scipy.optimize import linprog
 from tfcontact.errors import IncompatibleOptions, InvalidInput, TfcontactError, positive_int
 from tfcontact.timefreezing.cls import ComplementarityLagrangianSystem
 from tfcontact.verify.lcp import solve_lcp
-from tfcontact.verify.reference import StackedFunction
+from tfcontact.verify.reference import StackedFunction, checked_control
 from tfcontact.verify.replay import LOCAL_DEFECT_IMPACT_WINDOW, ReplayedPlan
 
 
@@ -495,22 +495,6 @@ def _contact_lcp(model: _Model, terms: _Terms, contacts: list[int],
     return split, forces, rates, solution.solved
 
 
-def _checked_control(u_of_t: Callable[[float], np.ndarray] | None,
-                     n_u: int) -> Callable[[float], np.ndarray]:
-    if u_of_t is None:
-        if n_u:
-            raise InvalidInput(f"`u_of_t` is None but the system has {n_u} controls: give "
-                               "a function of time returning shape ({n_u},)")
-        return lambda t: np.zeros(0)
-
-    def checked(t: float) -> np.ndarray:
-        value = np.atleast_1d(np.asarray(u_of_t(t), dtype=float))
-        if value.shape != (n_u,):
-            raise InvalidInput(f"`u_of_t` must return shape ({n_u},), got {value.shape}")
-        return value
-    return checked
-
-
 def simulate_multicontact(
     cls: ComplementarityLagrangianSystem,
     x0: np.ndarray,
@@ -557,7 +541,7 @@ def simulate_multicontact(
     x0 = np.asarray(x0, dtype=float).ravel()
     if x0.shape != (2 * cls.n_q,) or not np.all(np.isfinite(x0)):
         raise InvalidInput(f"`x0` must be finite with shape ({2 * cls.n_q},), got {x0.shape}")
-    control = _checked_control(u_of_t, cls.n_u)
+    control = checked_control(u_of_t, cls.n_u)
     model = _Model(cls, options.facets, options.max_rhs_evaluations)
     return _Simulator(model, control, T, options, breakpoints).run(x0)
 

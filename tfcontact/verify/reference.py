@@ -284,7 +284,7 @@ def simulate_impacts(
     x0 = np.asarray(x0, dtype=float).ravel()
     if x0.shape != (2 * cls.n_q,):
         raise InvalidInput(f"`x0` must have shape ({2 * cls.n_q},), got {x0.shape}")
-    control = _checked_control(u_of_t, cls.n_u)
+    control = checked_control(u_of_t, cls.n_u)
     if cls.n_contacts > 1:
         return _simulate_elastic_contacts(
             cls, x0, control, T, rtol=rtol, atol=atol, max_events=max_events,
@@ -451,11 +451,14 @@ def _segment(control: Callable[[float], np.ndarray], stops: list[float],
     return t_stop, segment_control
 
 
-def _checked_control(u_of_t: Callable[[float], np.ndarray] | None,
-                     n_u: int) -> Callable[[float], np.ndarray]:
+def checked_control(u_of_t: Callable[[float], np.ndarray] | None,
+                    n_u: int) -> Callable[[float], np.ndarray]:
+    """`u_of_t` checked to return shape (n_u,) [N, N m] at every call; zeros(0) for a
+    system without controls when it is None."""
     if u_of_t is None:
         if n_u:
-            raise InvalidInput(f"`u_of_t` is None but the system has {n_u} controls")
+            raise InvalidInput(f"`u_of_t` is None but the system has {n_u} controls: give "
+                               f"a function of time returning shape ({n_u},)")
 
         def control(t: float) -> np.ndarray:
             return np.zeros(0)
