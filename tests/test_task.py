@@ -128,7 +128,7 @@ def test_task_file_errors_for_missing_and_broken_files(tmp_path):
     ("tracking = { x = 50,", "tracking = { pitch = 5, x = 50,",
      r"`costs.tracking` names \['pitch'\], which the robot has not; its names: x, z, leg"),
     ("lift_offs = { toe = 1 }", "lift_offs = { heel = 1 }",
-     r"`goals.lift_offs` names \['heel'\], which are not contacts"),
+     r"`goals.lift_offs` names \['heel'\], which the robot has not; its contacts: toe"),
     ("[robot]", 'actuated = ["knee"]\n[robot]', r"`actuated` names \['knee'\], which are not"),
     ("friction = 0.5", "friction = 0.0", r"`contacts\[toe\].no_slip` needs friction > 0"),
 ])
@@ -434,7 +434,7 @@ def test_a_plane_only_terrain_keeps_the_flat_scene(tmp_path):
     ("smoothing = 0.004", "smoothing = 0.004\nregion = { lower = [0, 0, 0] }",
      r"`terrain.region` lacks \['upper'\]"),
     ("end_height = { foot = 0.05 }", "end_height = { toe = 0.05 }",
-     r"`goals.end_height` names \['toe'\], which are not contacts"),
+     r"`goals.end_height` names \['toe'\], which the robot has not; its contacts: foot"),
 ])
 def test_terrain_errors_name_the_field(step_file, old, new, message):
     with pytest.raises(InvalidInput, match=message):

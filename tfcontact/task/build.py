@@ -97,14 +97,9 @@ def build_task(task: Task) -> TaskSetup:
             task_region(task, robot), margin=max(c.radius for c in task.contacts))
         frictions = [_terrain_friction(ground, c.frame) if c.friction is None
                      else c.friction for c in task.contacts]
-    frictional = any(mu > 0 for mu in frictions)
-    plain = from_robot(robot, ground, mu=1.0 if frictional else 0.0, a_n=task.a_n,
-                       actuated=actuated)
-    # from_robot gives every contact the same mu; each contact takes its own here.
-    contacts = tuple(
-        dataclasses.replace(c, mu=mu, restitution=entry.restitution,
-                            tangents=c.tangents if mu > 0 else None)
-        for c, entry, mu in zip(plain.contacts, task.contacts, frictions, strict=True))
+    plain = from_robot(robot, ground, mu=frictions, a_n=task.a_n, actuated=actuated)
+    contacts = tuple(dataclasses.replace(c, restitution=entry.restitution)
+                     for c, entry in zip(plain.contacts, task.contacts, strict=True))
     cls = dataclasses.replace(
         plain, contacts=contacts, q_names=tuple(names),
         v_names=tuple(f"v_{n}" for n in names),
@@ -114,7 +109,7 @@ def build_task(task: Task) -> TaskSetup:
 
     state_names = list(cls.q_names) + list(cls.v_names)
     _check_names(task, state_names, [c.frame for c in task.contacts])
-    x0 = _start(task, robot, names)
+    x0 = _start(task, names)
     gaps = np.asarray(cls.function("gaps")(x0[:len(names)])).ravel()
     if np.any(gaps < -1e-9):
         below = [c.frame for c, g in zip(task.contacts, gaps, strict=True) if g < -1e-9]
@@ -238,26 +233,25 @@ def _v_index(robot: Any, joint: str) -> int:
 
 
 def _check_names(task: Task, state_names: list[str], frames: list[str]) -> None:
-    fields = {"start": task.start, "bounds": task.bounds,
-              "costs.tracking": task.costs.tracking, "costs.terminal": task.costs.terminal,
-              "goals.end": task.goals.end, "goals.progress": task.goals.progress}
-    fields.update({f"waypoints[t={w.time:g}]": w.values for w in task.waypoints})
-    for where, mapping in fields.items():
-        allowed = state_names if where in ("start", "bounds", "costs.tracking",
-                                           "costs.terminal") or where.startswith("waypoints") \
-            else state_names[:len(state_names) // 2]
+    coordinates = state_names[:len(state_names) // 2]
+    # fields that may name velocities too, and those about coordinates only
+    fields = [("start", task.start, state_names), ("bounds", task.bounds, state_names),
+              ("costs.tracking", task.costs.tracking, state_names),
+              ("costs.terminal", task.costs.terminal, state_names),
+              *((f"waypoints[t={w.time:g}]", w.values, state_names) for w in task.waypoints),
+              ("goals.end", task.goals.end, coordinates),
+              ("goals.progress", task.goals.progress, coordinates),
+              ("goals.lift_offs", task.goals.lift_offs, frames),
+              ("goals.end_height", task.goals.end_height, frames)]
+    for where, mapping, allowed in fields:
         unknown = [k for k in mapping if k not in allowed]
         if unknown:
+            kind = "contacts" if allowed is frames else "names"
             raise InvalidInput(f"`{where}` names {unknown}, which the robot has not; its "
-                               f"names: {', '.join(allowed)}")
-    for where in ("lift_offs", "end_height"):
-        unknown = [k for k in getattr(task.goals, where) if k not in frames]
-        if unknown:
-            raise InvalidInput(f"`goals.{where}` names {unknown}, which are not contacts; "
-                               f"the contacts: {frames}")
+                               f"{kind}: {', '.join(allowed)}")
 
 
-def _start(task: Task, robot: Any, names: list[str]) -> np.ndarray:
+def _start(task: Task, names: list[str]) -> np.ndarray:
     x0 = np.zeros(2 * len(names))
     state_names = names + [f"v_{n}" for n in names]
     for name, value in task.start.items():
