@@ -21,7 +21,8 @@ import example_robot_data
 import numpy as np
 import pinocchio as pin
 
-from tfcontact.viz import Trajectory, replay
+from tfcontact.plan_format import Trajectory
+from tfcontact.viz import replay
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from viz_hop import hop_trajectory, hopper_models  # noqa: E402

@@ -16,6 +16,7 @@ import tfcontact.scenes.monoped_exact as chain_module
 from tfcontact.cli import main
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp.polish import FLIGHT, STICK, Phase, PolishedPlan
+from tfcontact.plan_format import load_trajectory
 from tfcontact.scenes.monoped import REDUCED_TASK, monoped_problem
 from tfcontact.scenes.monoped_exact import (
     EXACT_TASK,
@@ -25,7 +26,6 @@ from tfcontact.scenes.monoped_exact import (
     tiled_guess,
     verify_saved,
 )
-from tfcontact.viz import load_trajectory
 
 SAVED_PLAN = Path(__file__).resolve().parents[1] / "benchmarks" / "monoped_exact_plan.npz"
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from tfcontact.cli import main
+from tfcontact.plan_format import load_trajectory
 from tfcontact.scenes.hopper import hopper_task
-from tfcontact.viz import load_trajectory
 
 pytestmark = pytest.mark.slow
 

@@ -18,6 +18,7 @@ from tfcontact.errors import InvalidInput
 from tfcontact.fesd import GaussLegendre, RadauIIA, simulate
 from tfcontact.mpcc import Homotopy, Ipopt, LinfPenalty
 from tfcontact.ocp.contact import ContactProblem, ContactSolverOptions, solve_contact
+from tfcontact.plan_format import load_trajectory
 from tfcontact.plan_format.adapters import trajectory_from_result
 from tfcontact.scenes.ball_in_box import TF2_WALLS, WALLS, ball_in_box
 from tfcontact.scenes.particle_ocps import (
@@ -27,7 +28,6 @@ from tfcontact.scenes.particle_ocps import (
     particle_friction_problem,
     throwing_ball_problem,
 )
-from tfcontact.viz import load_trajectory
 from tfcontact.viz.plan import save_plan
 
 # ---------------------------------------------------------------- the box, fast

@@ -3,7 +3,6 @@ task builds, checked against the URDF's own numbers and closed forms."""
 
 from __future__ import annotations
 
-import textwrap
 from pathlib import Path
 
 import casadi as ca
@@ -219,8 +218,7 @@ def test_validation_of_the_dataclasses():
 
 
 def test_presets_and_shipped_tasks_load():
-    for name, preset in SOLVER_PRESETS.items():
-        assert preset().attempts >= 1, name
+    """Every shipped task file loads, names itself by its file and builds its problem."""
     for name, path in shipped_tasks().items():
         task = load_task(path)
         assert task.name == name and task.description
@@ -256,7 +254,7 @@ def test_plan_list_shows_the_shipped_tasks(capsys):
     out = capsys.readouterr().out
     for name in shipped_tasks():
         assert name in out
-    assert textwrap.dedent("PATH.toml") in out
+    assert "PATH.toml" in out
 
 
 def test_the_readme_shows_the_shipped_task():

@@ -20,6 +20,7 @@ import pytest
 from viz_hop import project_hop_trajectory
 
 from tfcontact.errors import InvalidInput, TrajectoryFileError
+from tfcontact.plan_format import FORMAT_VERSION, Trajectory, load_trajectory, save_trajectory
 from tfcontact.plan_format.adapters import (
     CheckTolerances,
     check_plan,
@@ -29,7 +30,7 @@ from tfcontact.plan_format.adapters import (
     urdf_location,
 )
 from tfcontact.plan_format.trajectory import array_sha256, sidecar_sha256
-from tfcontact.viz import FORMAT_VERSION, Trajectory, cli_check, load_trajectory, save_trajectory
+from tfcontact.viz import cli_check
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / "scripts" / "check_trajectory.py"

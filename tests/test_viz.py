@@ -17,16 +17,15 @@ import umsgpack
 from viz_hop import CONTACTS, hop_trajectory, hopper_models, project_hop_trajectory
 
 from tfcontact.errors import InvalidInput, TrajectoryFileError
-from tfcontact.plan_format.trajectory import sidecar_path
-from tfcontact.viz import (
+from tfcontact.plan_format import (
     FORMAT_VERSION,
     Trajectory,
     load_trajectory,
     physical_time,
-    plot_trajectory,
-    replay,
     save_trajectory,
 )
+from tfcontact.plan_format.trajectory import sidecar_path
+from tfcontact.viz import plot_trajectory, replay
 from tfcontact.viz.meshcat_replay import HOLE_WIDTH, RecordingWindow, hole_meshes, simplify_mesh
 
 #: Stated bounds on the standalone page of the hopper: plain, measured 0.89 MB (meshcat's

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from viz_hop import hop_trajectory, hopper_models, project_hop_trajectory
 
+from tfcontact.plan_format import Trajectory
 from tfcontact.robot import Box, Hole, Plane, Terrain
-from tfcontact.viz import Trajectory
 from tfcontact.viz.figures import force_figure_names, robot_model, trajectory_figures
 from tfcontact.viz.labels import trajectory_labels
 

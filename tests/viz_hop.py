@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from tfcontact.viz import Trajectory
+from tfcontact.plan_format import Trajectory
 
 HOPPER_URDF = Path(__file__).parent / "data" / "viz_hopper.urdf"
 

@@ -56,7 +56,7 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "run_plan": ("tfcontact.scenes", "run_plan"),
     "trajectory": ("tfcontact.plan_format.adapters", "trajectory_from_result"),
     "replay": ("tfcontact.viz", "replay"),
-    "load_trajectory": ("tfcontact.viz", "load_trajectory"),
+    "load_trajectory": ("tfcontact.plan_format", "load_trajectory"),
     "Interrupted": ("tfcontact.errors", "Interrupted"),
     "TfcontactError": ("tfcontact.errors", "TfcontactError"),
 }

@@ -385,7 +385,8 @@ def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanO
                    collisions: dict, collision_files: list[Path]) -> list[Path]:
     """Write the trajectory, figures, replay and summary.json of a solved (or failed) plan
     into `out`; returns the paths written."""
-    from tfcontact.viz import plot_trajectory, replay, save_trajectory
+    from tfcontact.plan_format import save_trajectory
+    from tfcontact.viz import plot_trajectory, replay
 
     files = [*outcome.files, *collision_files]
     if outcome.trajectory is not None:
