@@ -35,6 +35,19 @@ The Heaviside product form (DESIGN.md 4.4) combines the contacts:
 
 so simultaneous impacts add their auxiliary fields while the clock is frozen.
 
+The Heaviside right-hand side is linear in the weights, and every mode's velocity block
+is M(q)^{-1} times a generalized force F_k (F_ODE = f_v, F_+,i = n_i a_n - ..., and so
+on), so
+
+    sum_k theta_k f_k = (theta_ODE v, M^{-1} sum_k theta_k F_k, theta_ODE)
+
+exactly: one solve with M(q) instead of one per mode (nine for four 3-D contacts). The
+`dynamics` strategy chooses the expression handed to the FESD layer: `OneSolve`
+(default) or `PerModeSolves` (sum_k theta_k f_k as written, for comparison;
+benchmarks/dynamics_forms.md). The two are the same function, so solutions agree;
+derivatives of the one-solve form are cheaper. `TimeFreezingSystem.modes` keeps the
+per-mode columns either way (diagnostics, plots, tests).
+
 The Stewart form (`form="stewart"`, one contact, planar or no friction) gives each sign
 pattern of the switching functions its own region, as nosnoc_py's time-freezing examples
 do: the auxiliary fields where c_q < 0 and c_vn < 0 (split by the sign of c_vt), f_ODE in
@@ -45,7 +58,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -59,6 +73,52 @@ from tfcontact.timefreezing.system import TimeFreezingSystem
 def smooth_norm(vt: ca.SX, eps: float) -> ca.SX:
     """||v_t||_eps = sqrt(v_t^T v_t + eps^2): smooth everywhere, >= eps."""
     return ca.sqrt(ca.sumsqr(vt) + eps**2)
+
+
+class HeavisideDynamics(ABC):
+    """How the Heaviside right-hand side sum_k theta_k f_k is written as an expression.
+
+    Column 0 of `modes` is free flight f_ODE = (v, M^{-1} f_v, 1), weight theta_ODE;
+    every other column is (0, M^{-1} F_k, 0). `forces` holds the generalized forces
+    (f_v, F_1, ...) in the same order, so the strategies can regroup the sum.
+    """
+
+    name: str = "dynamics"
+
+    @abstractmethod
+    def rhs(self, cls: ComplementarityLagrangianSystem, modes: ca.SX, weights: ca.SX,
+            forces: ca.SX) -> ca.SX:
+        """f(y, u, alpha) = modes @ weights, shape (2 n_q + 1, 1), as this strategy writes it."""
+
+
+@dataclass(frozen=True)
+class OneSolve(HeavisideDynamics):
+    """(theta_ODE v, M^{-1} (sum_k theta_k F_k), theta_ODE): one solve with M(q).
+
+    The sum of the solves is the solve of the sum, so this is the per-mode expression
+    regrouped; the NLP's Jacobian and Hessian evaluate one LDL of M(q) instead of one per
+    mode (solo12: 9 -> 1, Hessian of lambda^T f about 25 % fewer instructions).
+    """
+
+    name: str = "one_solve"
+
+    def rhs(self, cls: ComplementarityLagrangianSystem, modes: ca.SX, weights: ca.SX,
+            forces: ca.SX) -> ca.SX:
+        theta_ode = weights[0]
+        return ca.vertcat(theta_ode * cls.v, cls.solve_mass(ca.mtimes(forces, weights)),
+                          theta_ode)
+
+
+@dataclass(frozen=True)
+class PerModeSolves(HeavisideDynamics):
+    """modes @ weights as written: one M(q) solve per mode (the form before `OneSolve`;
+    kept to measure against)."""
+
+    name: str = "per_mode_solves"
+
+    def rhs(self, cls: ComplementarityLagrangianSystem, modes: ca.SX, weights: ca.SX,
+            forces: ca.SX) -> ca.SX:
+        return ca.mtimes(modes, weights)
 
 
 @dataclass(frozen=True)
@@ -86,11 +146,15 @@ class Inelastic:
         form: "heaviside" (default: step variables, any number of contacts) or
             "stewart" (one region per sign pattern of the switching functions, one
             contact with planar or no friction).
+        dynamics: how the Heaviside form writes sum_k theta_k f_k (module docstring):
+            `OneSolve()` (default) or `PerModeSolves()`. The Stewart form hands every
+            region's mode to FESD separately, so there is nothing to regroup there.
     """
 
     normal_switching: str = "separate"
     gap_scale: float = 1.0
     form: str = "heaviside"
+    dynamics: HeavisideDynamics = field(default_factory=OneSolve)
 
     def __post_init__(self) -> None:
         if self.normal_switching not in ("separate", "max"):
@@ -101,6 +165,9 @@ class Inelastic:
             raise InvalidInput(f"`gap_scale` must be a finite number > 0, got {self.gap_scale!r}")
         if self.form not in ("heaviside", "stewart"):
             raise InvalidInput(f"`form` must be 'heaviside' or 'stewart', got {self.form!r}")
+        if not isinstance(self.dynamics, HeavisideDynamics):
+            raise InvalidInput("`dynamics` must be a `HeavisideDynamics` strategy such as "
+                               f"`OneSolve()`, got {self.dynamics!r}")
 
     def build(self, cls: ComplementarityLagrangianSystem) -> TimeFreezingSystem:
         """The time-freezing PSS of `cls` (module docstring)."""
@@ -121,6 +188,7 @@ class Inelastic:
         modes, weights, region_names = [f_ode], [], ["ode"]
         theta_ode = ca.SX(1)
         aux_weights, aux_modes, aux_names = [], [], []
+        forces = [cls.forces]  # generalized force of each mode, in the order of `modes`
         for i, contact in enumerate(cls.contacts):
             name = contact.name
             normal = contact.normal
@@ -141,8 +209,9 @@ class Inelastic:
                 theta_ode = theta_ode * (a_q + a_n - a_q * a_n)
                 in_q = (1 - a_q) * (1 - a_n)
             if not contact.has_friction:
-                push = cls.solve_mass(normal * contact.a_n)
-                aux_modes.append(ca.vertcat(zeros_q, push, 0))
+                push = normal * contact.a_n
+                forces.append(push)
+                aux_modes.append(ca.vertcat(zeros_q, cls.solve_mass(push), 0))
                 aux_weights.append(in_q)
                 aux_names.append(f"aux_n_{name}")
                 continue
@@ -161,6 +230,7 @@ class Inelastic:
                 switching.append(norm - math.sqrt(2.0) * contact.eps_t)
                 plus = normal * contact.a_n - ca.mtimes(tangents, vt) * (gain / norm)
                 minus = normal * contact.a_n + ca.mtimes(tangents, vt)
+            forces += [plus, minus]
             aux_modes += [ca.vertcat(zeros_q, cls.solve_mass(plus), 0),
                           ca.vertcat(zeros_q, cls.solve_mass(minus), 0)]
             aux_weights += [in_q * a_t, in_q * (1 - a_t)]
@@ -169,7 +239,7 @@ class Inelastic:
         modes = ca.horzcat(*modes, *aux_modes)
         region_names += aux_names
         alpha = ca.vertcat(*alphas)
-        rhs = ca.mtimes(modes, weights)
+        rhs = self.dynamics.rhs(cls, modes, weights, ca.horzcat(*forces))
         state_names = (*cls.q_names, *cls.v_names, "t")
         pss = HeavisideSystem(
             x=y, u=cls.u, alpha=alpha, rhs=rhs, switching=ca.vertcat(*switching),
@@ -179,7 +249,8 @@ class Inelastic:
             pss=pss, kind="inelastic", clock_index=2 * n, q_index=slice(0, n),
             v_index=slice(n, 2 * n), modes=modes, weights=weights,
             region_names=tuple(region_names), cls=cls,
-            info=(("form", "heaviside"), ("alpha_names", tuple(alpha_names)),
+            info=(("form", "heaviside"), ("dynamics", self.dynamics.name),
+                  ("alpha_names", tuple(alpha_names)),
                   ("normal_switching", self.normal_switching),
                   ("gap_scale", self.gap_scale),
                   ("a_n", tuple(c.a_n for c in cls.contacts)),
