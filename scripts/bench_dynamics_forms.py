@@ -10,17 +10,17 @@ in three forms of the same function:
 
 * per-mode solves (`PerModeSolves`): sum_k theta_k f_k, one M(q)^-1 solve per mode;
 * one solve (`OneSolve`, the default): (theta_0 v, M^-1 sum_k theta_k F_k, theta_0);
-* inverse dynamics (expressions only, not an option of the library yet): an acceleration
-  variable a, f = (theta_0 v, a, theta_0) and the equality g = M(q) a - sum_k theta_k F_k
-  = 0, no M^-1 at all. Its rows are (f, g) in (y, u, alpha, a): the NLP would carry n_v
-  more variables and equalities per stage point.
+* inverse dynamics (`InverseDynamics`, opt-in): an acceleration variable a per stage
+  point, f = (theta_0 v, a, theta_0) and the equality g = M(q) a - sum_k theta_k F_k = 0,
+  no M^-1 at all. Its rows are (f, g) in (y, u, alpha, a): the NLP carries n_v more
+  variables and equalities per stage point.
 
 For each it prints SX instructions and evaluation time (CasADi's virtual machine, batched
 with `Function.map`, best of --repeat, per evaluation) of f, of its Jacobian and of the
 Hessian of lambda^T f (what IPOPT's Lagrangian Hessian evaluates per stage point), and
 the nonzeros of the Jacobian and Hessian. Then it solves the hopper plan
 (`hopper_problem("bench")`, `hopper_options("bench")`, as scripts/bench_hopper.py's first
-row) with per-mode solves and with one solve, alternating, --plans times each.
+row) with each form in turn, --plans rounds.
 """
 
 from __future__ import annotations
@@ -46,6 +46,7 @@ from tfcontact.timefreezing import ComplementarityLagrangianSystem, time_freeze 
 from tfcontact.timefreezing.inelastic import (  # noqa: E402
     HeavisideDynamics,
     Inelastic,
+    InverseDynamics,
     OneSolve,
     PerModeSolves,
 )
@@ -53,20 +54,9 @@ from tfcontact.timefreezing.inelastic import (  # noqa: E402
 SOLO_FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
 
 
-class ForcesProbe(HeavisideDynamics):
-    """Writes the per-mode sum, and keeps the generalized forces and weights it was given:
-    the inverse-dynamics residual M a - forces @ weights is stated from them."""
-
-    name = "probe"
-
-    def __init__(self) -> None:
-        self.forces: ca.SX | None = None
-        self.weights: ca.SX | None = None
-
-    def rhs(self, cls: ComplementarityLagrangianSystem, modes: ca.SX, weights: ca.SX,
-            forces: ca.SX) -> ca.SX:
-        self.forces, self.weights = forces, weights
-        return ca.mtimes(modes, weights)
+FORMS: tuple[tuple[str, HeavisideDynamics], ...] = (
+    ("per-mode solves", PerModeSolves()), ("one solve", OneSolve()),
+    ("inverse dynamics", InverseDynamics()))
 
 
 def robots() -> dict[str, ComplementarityLagrangianSystem]:
@@ -145,23 +135,16 @@ def measure(form: str, z: ca.SX, rows: ca.SX, samples: int, repeat: int,
 
 def forms(cls: ComplementarityLagrangianSystem, samples: int, repeat: int,
           seed: int = 0) -> list[Measure]:
-    """The three forms of `cls`'s Heaviside right-hand side, measured."""
+    """The three forms of `cls`'s Heaviside right-hand side, measured: rows (f, e) in
+    (y, u, alpha, a), e and a empty for the explicit forms."""
     rng = np.random.default_rng(seed)
     out = []
-    for form, dynamics in (("per-mode solves", PerModeSolves()), ("one solve", OneSolve())):
+    for form, dynamics in FORMS:
         pss = time_freeze(cls, method=Inelastic(dynamics=dynamics)).pss
-        z = ca.vertcat(pss.x, pss.u, pss.alpha)
-        out.append(measure(form, z, pss.rhs, samples, repeat, rng))
-    probe = ForcesProbe()
-    pss = time_freeze(cls, method=Inelastic(dynamics=probe)).pss
-    n = cls.n_q
-    accel = ca.SX.sym("a", n)
-    theta_ode = probe.weights[0]
-    rhs = ca.vertcat(theta_ode * pss.x[n:2 * n], accel, theta_ode)
-    residual = ca.mtimes(cls.mass_matrix, accel) - ca.mtimes(probe.forces, probe.weights)
-    z = ca.vertcat(pss.x, pss.u, pss.alpha, accel)
-    out.append(measure("inverse dynamics (f, g)", z, ca.vertcat(rhs, residual), samples,
-                       repeat, rng))
+        z = ca.vertcat(pss.x, pss.u, pss.alpha, pss.auxiliary)
+        label = f"{form} (f, e)" if pss.n_auxiliary else form
+        out.append(measure(label, z, ca.vertcat(pss.rhs, pss.auxiliary_equations), samples,
+                           repeat, rng))
     return out
 
 
@@ -169,7 +152,7 @@ def check_equal(cls: ComplementarityLagrangianSystem, seed: int = 1) -> float:
     """max |f_one - f_per-mode| / max |f| at random points (the forms are one function)."""
     rng = np.random.default_rng(seed)
     values = []
-    for dynamics in (PerModeSolves(), OneSolve()):
+    for _, dynamics in FORMS[:2]:
         pss = time_freeze(cls, method=Inelastic(dynamics=dynamics)).pss
         f = ca.Function("f", [ca.vertcat(pss.x, pss.u, pss.alpha)], [pss.rhs])
         values.append(f)
@@ -181,27 +164,37 @@ def check_equal(cls: ComplementarityLagrangianSystem, seed: int = 1) -> float:
     return worst
 
 
-def per_mode_problem(problem):
-    """`problem` with its rhs written as per-mode solves: tf.modes @ tf.weights is exactly
-    `PerModeSolves`' expression, in the same symbols as the problem's costs."""
+def with_dynamics(problem, dynamics: HeavisideDynamics):
+    """`problem` with its time-freezing system rebuilt with `dynamics` (the scenes build
+    the default form). The rebuild has a new clock symbol, which the hopper's running cost
+    reads (its reference is a function of the clock): it is replaced by the problem's."""
     tf = problem.system
-    pss = dataclasses.replace(tf.pss, rhs=ca.mtimes(tf.modes, tf.weights))
-    return dataclasses.replace(problem, system=dataclasses.replace(tf, pss=pss))
+    method = Inelastic(normal_switching=tf.parameter("normal_switching"),
+                       gap_scale=tf.parameter("gap_scale"), dynamics=dynamics)
+    new = time_freeze(tf.cls, method=method)
+    old_t, new_t = tf.y[tf.clock_index], new.y[new.clock_index]
+
+    def same_clock(expr: ca.SX) -> ca.SX:
+        return ca.substitute(expr, new_t, old_t)
+
+    pss = dataclasses.replace(new.pss, x=tf.pss.x, rhs=same_clock(new.pss.rhs),
+                              auxiliary_equations=same_clock(new.pss.auxiliary_equations))
+    return dataclasses.replace(problem, system=dataclasses.replace(
+        new, pss=pss, modes=same_clock(new.modes), weights=same_clock(new.weights)))
 
 
 def hopper_plans(n_runs: int) -> list[dict]:
-    """The hopper bench plan with each form, alternating, `n_runs` times each."""
+    """The hopper bench plan with each form in turn, `n_runs` rounds."""
     from tfcontact.ocp.contact import solve_contact
     from tfcontact.scenes.hopper import hopper_options, hopper_problem
 
     options = hopper_options("bench")
     rows = []
     for run in range(n_runs):
-        for form in ("per-mode solves", "one solve"):
+        for form, dynamics in FORMS:
             start = time.perf_counter()
             _, _, problem = hopper_problem("bench")
-            if form == "per-mode solves":
-                problem = per_mode_problem(problem)
+            problem = with_dynamics(problem, dynamics)
             result = solve_contact(problem, options, verbose=False)
             wall = time.perf_counter() - start
             ocp = result.ocp
@@ -252,16 +245,18 @@ def plan_table(rows: list[dict]) -> list[str]:
             f"{1e3 * r['solve'] / max(r['iterations'], 1):.1f} | {r['cost']:.4f} | "
             f"{r['x_end']:.4f} | {r['status']} |")
     lines.append("")
-    for form in ("per-mode solves", "one solve"):
+    best = {}
+    for form, _ in FORMS:
         mine = [r for r in rows if r["form"] == form]
-        lines.append(f"{form}: best wall {min(r['wall'] for r in mine):.2f} s, best NLP "
-                     f"solves {min(r['solve'] for r in mine):.2f} s, best evaluations "
-                     f"{min(r['evaluations'] for r in mine):.2f} s  ")
-    per = [r for r in rows if r["form"] == "per-mode solves"]
-    one = [r for r in rows if r["form"] == "one solve"]
-    lines.append(f"ratio per-mode / one solve (best of each): wall "
-                 f"{min(r['wall'] for r in per) / min(r['wall'] for r in one):.2f}, "
-                 f"evaluations {min(r['evaluations'] for r in per) / min(r['evaluations'] for r in one):.2f}")  # noqa: E501
+        best[form] = {key: min(r[key] for r in mine) for key in ("wall", "solve", "evaluations")}
+        lines.append(f"{form}: best wall {best[form]['wall']:.2f} s, best NLP solves "
+                     f"{best[form]['solve']:.2f} s, best evaluations "
+                     f"{best[form]['evaluations']:.2f} s  ")
+    reference = best["per-mode solves"]
+    for form in list(best)[1:]:
+        lines.append(f"ratio per-mode solves / {form} (best of each): wall "
+                     f"{reference['wall'] / best[form]['wall']:.2f}, evaluations "
+                     f"{reference['evaluations'] / best[form]['evaluations']:.2f}  ")
     return lines
 
 

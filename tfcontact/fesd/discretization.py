@@ -314,13 +314,17 @@ class Discretization:
 
         Args:
             x0: state, shape (n_x,).
-            u: controls, shape (N, n_u) or (n_u,) (ignored when controls are parameters).
+            u: controls, shape (N, n_u) or (n_u,) (when controls are parameters only the
+                auxiliary variables' guess uses them, the first interval's).
         """
         w0 = self.mpcc.w0.copy()
         x0 = np.asarray(x0, dtype=float).reshape(-1)
         w0[self.layout.x] = x0
         w0[self.layout.x_stages] = x0
-        z = self.form.guess(x0)
+        first_u = None
+        if u is not None and self.n_u:
+            first_u = np.asarray(u, dtype=float).reshape(-1, self.n_u)[0]
+        z = self.form.guess(x0, first_u)
         k = 0
         for b in self.form.stage_blocks:
             w0[self.layout.z[b.name]] = z[k:k + b.size]
@@ -473,7 +477,7 @@ def discretize(
     for j in range(s):
         res.append(Xs[:, j] - xs - hs * sum(tab.A[j, k] * fs[k] for k in range(s)))
     for j in range(s):
-        res.append(form.algebraic(Xs[:, j], Zs[:, j]))
+        res.append(form.algebraic(Xs[:, j], us, Zs[:, j]))
     if not stiff:
         res.append(xes - xs - hs * sum(tab.b[j] * fs[j] for j in range(s)))
     if boundary:

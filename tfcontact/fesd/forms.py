@@ -10,7 +10,11 @@ point": Lambda only, fixed by cross complementarity) and Lambda at the initial s
              g(x) - lambda - mu e = 0,  e^T theta = 1,  Theta = theta, Lambda = lambda.
 * Heaviside: z = (alpha, lambda_n, lambda_p),  x' = f(x, u, alpha),
              c(x) - lambda_p + lambda_n = 0,  0 <= alpha <= 1,
-             Theta = (alpha, 1 - alpha),  Lambda = (lambda_n, lambda_p).
+             Theta = (alpha, 1 - alpha),  Lambda = (lambda_n, lambda_p);
+             with auxiliary variables a (`HeavisideSystem.auxiliary`, e.g. the
+             accelerations of the inverse-dynamics form) z also holds a, x' = f(x, u, alpha,
+             a), and e(x, u, alpha, a) = 0 joins the algebraic equations. The boundary
+             points need no a: only Lambda is asked of them.
 
 References: Stewart, Numer. Math. 58 (1990); Nurkanovic et al., Numer. Math. 2024 (FESD);
 Nurkanovic, Pozharskiy, Frey, Diehl, NAHS 2024 (Heaviside step form).
@@ -70,7 +74,7 @@ class Form(ABC):
         """The vector field at a stage point."""
 
     @abstractmethod
-    def algebraic(self, x: ca.SX, z: ca.SX) -> ca.SX:
+    def algebraic(self, x: ca.SX, u: ca.SX, z: ca.SX) -> ca.SX:
         """Equality constraints (= 0) at a stage point."""
 
     @abstractmethod
@@ -94,8 +98,9 @@ class Form(ABC):
         """Lambda at a state, in closed form (for the initial state; fmin/fmax of parameters)."""
 
     @abstractmethod
-    def guess(self, x: np.ndarray) -> np.ndarray:
-        """A consistent stage guess z at a numeric state x (the region of x)."""
+    def guess(self, x: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """A consistent stage guess z at a numeric state x (the region of x) and controls u
+        (zero if None; only auxiliary variables depend on them)."""
 
 
 class StewartForm(Form):
@@ -120,7 +125,7 @@ class StewartForm(Form):
     def rhs(self, x, u, z):
         return ca.mtimes(self._F(x, u), self.split(z, self.stage_blocks)["theta"])
 
-    def algebraic(self, x, z):
+    def algebraic(self, x, u, z):
         v = self.split(z, self.stage_blocks)
         return ca.vertcat(self._g(x) - v["lambda"] - v["mu"], ca.sum1(v["theta"]) - 1)
 
@@ -141,7 +146,7 @@ class StewartForm(Form):
         g = self._g(x)
         return g - ca.mmin(g)
 
-    def guess(self, x):
+    def guess(self, x, u=None):
         g = np.asarray(self._g(x)).reshape(-1)
         theta = np.zeros(self.m)
         theta[np.argmin(g)] = 1.0
@@ -155,24 +160,39 @@ class HeavisideForm(Form):
         self.system = system
         n_c = system.n_switching
         self.m = 2 * n_c
+        n_a = system.n_auxiliary
         self.stage_blocks = (
             Block("alpha", n_c, 0.0, 1.0),
             Block("lambda_n", n_c, 0.0, np.inf),
             Block("lambda_p", n_c, 0.0, np.inf),
-        )
+        ) + ((Block("auxiliary", n_a, -np.inf, np.inf),) if n_a else ())
         self.boundary_blocks = (
             Block("lambda_n_end", n_c, 0.0, np.inf),
             Block("lambda_p_end", n_c, 0.0, np.inf),
         )
-        self._f = ca.Function("rhs", [system.x, system.u, system.alpha], [system.rhs])
+        inputs = [system.x, system.u, system.alpha, system.auxiliary]
+        self._f = ca.Function("rhs", inputs, [system.rhs])
+        self._e = ca.Function("auxiliary_equations", inputs, [system.auxiliary_equations])
         self._c = ca.Function("switching", [system.x], [system.switching])
+        # a from e(x, u, alpha, a) = 0 by one Newton step from a = 0 (exact for e affine in
+        # a, as M(q) a - forces is): the stage guess
+        e = system.auxiliary_equations
+        step = -ca.solve(ca.jacobian(e, system.auxiliary), ca.substitute(
+            e, system.auxiliary, ca.SX.zeros(n_a))) if n_a else ca.SX(0, 1)
+        self._a_guess = ca.Function("auxiliary_guess", inputs[:3], [step])
+
+    def _auxiliary(self, z):
+        if not self.system.n_auxiliary:
+            return ca.SX(0, 1)
+        return self.split(z, self.stage_blocks)["auxiliary"]
 
     def rhs(self, x, u, z):
-        return self._f(x, u, self.split(z, self.stage_blocks)["alpha"])
+        return self._f(x, u, self.split(z, self.stage_blocks)["alpha"], self._auxiliary(z))
 
-    def algebraic(self, x, z):
+    def algebraic(self, x, u, z):
         v = self.split(z, self.stage_blocks)
-        return self._c(x) - v["lambda_p"] + v["lambda_n"]
+        return ca.vertcat(self._c(x) - v["lambda_p"] + v["lambda_n"],
+                          self._e(x, u, v["alpha"], self._auxiliary(z)))
 
     def theta(self, z):
         alpha = self.split(z, self.stage_blocks)["alpha"]
@@ -194,10 +214,14 @@ class HeavisideForm(Form):
         c = self._c(x)
         return ca.vertcat(ca.fmax(-c, 0), ca.fmax(c, 0))
 
-    def guess(self, x):
+    def guess(self, x, u=None):
         c = np.asarray(self._c(x)).reshape(-1)
         alpha = np.where(c > 0, 1.0, np.where(c < 0, 0.0, 0.5))
-        return np.concatenate([alpha, np.maximum(-c, 0), np.maximum(c, 0)])
+        parts = [alpha, np.maximum(-c, 0), np.maximum(c, 0)]
+        if self.system.n_auxiliary:
+            u = np.zeros(self.system.n_u) if u is None else np.asarray(u, dtype=float)
+            parts.append(np.asarray(self._a_guess(x, u.reshape(-1), alpha)).reshape(-1))
+        return np.concatenate(parts)
 
 
 def form_of(system: object) -> Form:

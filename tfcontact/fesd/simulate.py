@@ -422,6 +422,10 @@ def _scaled_system(tf: ClockedSystem, factor: float) -> StewartSystem | Heavisid
 
     For the inelastic builder these modes are M^-1 (n a_n -+ B mu a_n): the factor
     scales every contact's a_n, exactly as a rebuild with the scaled gains would.
+    A Heaviside system with auxiliary variables (the inverse-dynamics form) keeps them and
+    their equations, so every step's discretisation has the same blocks, and gets the
+    difference (factor - 1) sum_frozen theta_k f_k added to its rhs explicitly (with
+    M^-1: only the simulator's rescaled steps pay for it).
     """
     pss = tf.pss
     if factor == 1.0:
@@ -436,6 +440,12 @@ def _scaled_system(tf: ClockedSystem, factor: float) -> StewartSystem | Heavisid
     modes = tf.modes
     scale = [factor if modes[tf.clock_index, j].is_zero() else 1.0
              for j in range(modes.shape[1])]
+    if pss.n_auxiliary:
+        extra = [k - 1.0 for k in scale]
+        rhs = pss.rhs + ca.mtimes(ca.mtimes(modes, ca.diag(ca.DM(extra))), tf.weights)
+        return HeavisideSystem(x=pss.x, u=pss.u, alpha=pss.alpha, rhs=rhs,
+                               switching=pss.switching, auxiliary=pss.auxiliary,
+                               auxiliary_equations=pss.auxiliary_equations, **names)
     rhs = ca.mtimes(ca.mtimes(modes, ca.diag(ca.DM(scale))), tf.weights)
     return HeavisideSystem(x=pss.x, u=pss.u, alpha=pss.alpha, rhs=rhs,
                            switching=pss.switching, **names)
@@ -580,7 +590,7 @@ class _Stepper:
             w[disc.layout.x] += shift
             w[disc.layout.x_stages] += shift
         else:
-            w = disc.initial_guess(x)
+            w = disc.initial_guess(x, u)
         w[disc.layout.x[0]] = x
         result = solver.solve(p, w, homotopy=self.homotopy, verbose=self.verbose)
         self.attempts.append(result)
@@ -598,7 +608,7 @@ class _Stepper:
                     else MpccSolver(disc.mpcc, relaxation=Scholtes(), nlp=self.nlp))
             gentler = replace(self.homotopy, kappa=math.sqrt(self.homotopy.kappa),
                               max_nlps=None)
-            result = self.fallbacks[id(solver)].solve(p, disc.initial_guess(x),
+            result = self.fallbacks[id(solver)].solve(p, disc.initial_guess(x, u),
                                                        homotopy=gentler, verbose=self.verbose)
             self.attempts.append(result)
         return disc, result

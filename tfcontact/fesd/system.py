@@ -9,6 +9,10 @@ switching functions c(x) change sign (DESIGN.md section 4.6):
 * `HeavisideSystem`: x' = f(x, u, alpha), alpha_j in H(c_j(x)) (the set-valued
   Heaviside step), f multi-affine in alpha. Regions that are unions and
   intersections of sign conditions (time-freezing) are products of alpha and 1 - alpha.
+  Optionally f also depends on auxiliary variables a fixed by equations
+  e(x, u, alpha, a) = 0 (the inverse-dynamics form of time-freezing: a the accelerations,
+  e = M(q) a - forces, so that no expression holds M^-1); a discretisation carries a
+  and e at every stage point.
 
 Both are immutable descriptions built from CasADi SX symbols; nothing is
 discretised or solved here.
@@ -166,9 +170,13 @@ class HeavisideSystem:
         x: state symbols, shape (n_x, 1).
         u: control symbols, shape (n_u, 1) (may be empty).
         alpha: step symbols, one per switching function, shape (n_c, 1).
-        rhs: f(x, u, alpha), shape (n_x, 1), multi-affine in alpha.
+        rhs: f(x, u, alpha, a), shape (n_x, 1), multi-affine in alpha.
         switching: c(x), shape (n_c, 1).
         state_names, control_names: labels for plots and files.
+        auxiliary: a, symbols of auxiliary variables, shape (n_a, 1); empty (default)
+            for an explicit f(x, u, alpha).
+        auxiliary_equations: e(x, u, alpha, a) = 0, shape (n_a, 1), which must fix a
+            (de/da nonsingular; affine in a for `HeavisideForm.guess` to be exact).
     """
 
     x: ca.SX
@@ -178,6 +186,8 @@ class HeavisideSystem:
     switching: ca.SX
     state_names: tuple[str, ...] | None = None
     control_names: tuple[str, ...] | None = None
+    auxiliary: ca.SX | None = None
+    auxiliary_equations: ca.SX | None = None
 
     def __post_init__(self) -> None:
         x = _symbols(self.x, "x")
@@ -194,9 +204,20 @@ class HeavisideSystem:
                 f"`alpha` has {alpha.numel()} entries but `switching` has {c.numel()}; "
                 "give one step variable per switching function"
             )
+        aux = _symbols(ca.SX(0, 1) if self.auxiliary is None else self.auxiliary, "auxiliary")
+        equations = _column(ca.SX(0, 1) if self.auxiliary_equations is None
+                            else self.auxiliary_equations, "auxiliary_equations")
+        if equations.numel() != aux.numel():
+            raise InvalidInput(
+                f"`auxiliary_equations` has {equations.numel()} entries but `auxiliary` has "
+                f"{aux.numel()}: give one equation per auxiliary variable")
         check_depends(c, [x], "switching", "the states")
-        check_depends(rhs, [x, u, alpha], "rhs", "the states, controls and alpha")
-        for name, value in (("x", x), ("u", u), ("alpha", alpha), ("rhs", rhs), ("switching", c)):
+        check_depends(rhs, [x, u, alpha, aux], "rhs",
+                      "the states, controls, alpha and the auxiliary variables")
+        check_depends(equations, [x, u, alpha, aux], "auxiliary_equations",
+                      "the states, controls, alpha and the auxiliary variables")
+        for name, value in (("x", x), ("u", u), ("alpha", alpha), ("rhs", rhs), ("switching", c),
+                            ("auxiliary", aux), ("auxiliary_equations", equations)):
             object.__setattr__(self, name, value)
         object.__setattr__(
             self, "state_names", labels(self.state_names, x.numel(), "x", "state_names")
@@ -217,17 +238,23 @@ class HeavisideSystem:
     def n_switching(self) -> int:
         return self.switching.numel()
 
+    @property
+    def n_auxiliary(self) -> int:
+        return self.auxiliary.numel()
+
     def with_dynamics(self, rows: Callable[[ca.SX], ca.SX], *, x: ca.SX | None = None,
                       u: ca.SX | None = None, state_names: tuple[str, ...] | None = None,
                       control_names: tuple[str, ...] | None = None) -> HeavisideSystem:
         """The same switching with the right-hand side's rows passed through `rows`
         (f is multi-affine in alpha, so a row map that is linear in the modes may act on f
-        directly), optionally with new state and control symbols and names."""
+        directly), optionally with new state and control symbols and names. The auxiliary
+        variables and their equations are kept: they define f's terms, not its rows."""
         return HeavisideSystem(
             x=self.x if x is None else x, u=self.u if u is None else u, alpha=self.alpha,
             rhs=rows(self.rhs), switching=self.switching,
             state_names=self.state_names if state_names is None else state_names,
-            control_names=self.control_names if control_names is None else control_names)
+            control_names=self.control_names if control_names is None else control_names,
+            auxiliary=self.auxiliary, auxiliary_equations=self.auxiliary_equations)
 
     def theta(self, algebraic: Mapping[str, np.ndarray]) -> np.ndarray:
         """The Heaviside steps as multipliers, (alpha, 1 - alpha), from a discretisation's

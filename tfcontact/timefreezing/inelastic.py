@@ -43,10 +43,12 @@ on), so
 
 exactly: one solve with M(q) instead of one per mode (nine for four 3-D contacts). The
 `dynamics` strategy chooses the expression handed to the FESD layer: `OneSolve`
-(default) or `PerModeSolves` (sum_k theta_k f_k as written, for comparison;
-benchmarks/dynamics_forms.md). The two are the same function, so solutions agree;
-derivatives of the one-solve form are cheaper. `TimeFreezingSystem.modes` keeps the
-per-mode columns either way (diagnostics, plots, tests).
+(default), `PerModeSolves` (sum_k theta_k f_k as written, for comparison) or
+`InverseDynamics` (issues 30/31: accelerations a as auxiliary variables of every stage
+point, f = (theta_ODE v, a, theta_ODE) and M(q) a = sum_k theta_k F_k, no M^{-1} at all).
+All three are the same dynamics, so solutions agree; the derivatives differ in cost
+(benchmarks/dynamics_forms.md). `TimeFreezingSystem.modes` keeps the per-mode columns
+either way (diagnostics, plots, tests).
 
 The Stewart form (`form="stewart"`, one contact, planar or no friction) gives each sign
 pattern of the switching functions its own region, as nosnoc_py's time-freezing examples
@@ -60,6 +62,7 @@ import itertools
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import casadi as ca
 import numpy as np
@@ -75,6 +78,16 @@ def smooth_norm(vt: ca.SX, eps: float) -> ca.SX:
     return ca.sqrt(ca.sumsqr(vt) + eps**2)
 
 
+@dataclass(frozen=True)
+class DynamicsTerms:
+    """What a `HeavisideDynamics` strategy hands to `HeavisideSystem`: the rhs, and the
+    auxiliary variables with their equations (empty for an explicit rhs)."""
+
+    rhs: ca.SX
+    auxiliary: ca.SX = field(default_factory=lambda: ca.SX(0, 1))
+    equations: ca.SX = field(default_factory=lambda: ca.SX(0, 1))
+
+
 class HeavisideDynamics(ABC):
     """How the Heaviside right-hand side sum_k theta_k f_k is written as an expression.
 
@@ -84,11 +97,14 @@ class HeavisideDynamics(ABC):
     """
 
     name: str = "dynamics"
+    # False: the strategy adds auxiliary variables, which only the Heaviside form carries
+    explicit: ClassVar[bool] = True
 
     @abstractmethod
-    def rhs(self, cls: ComplementarityLagrangianSystem, modes: ca.SX, weights: ca.SX,
-            forces: ca.SX) -> ca.SX:
-        """f(y, u, alpha) = modes @ weights, shape (2 n_q + 1, 1), as this strategy writes it."""
+    def terms(self, cls: ComplementarityLagrangianSystem, modes: ca.SX, weights: ca.SX,
+              forces: ca.SX) -> DynamicsTerms:
+        """f(y, u, alpha[, a]), shape (2 n_q + 1, 1), equal to modes @ weights where the
+        auxiliary equations hold, as this strategy writes it."""
 
 
 @dataclass(frozen=True)
@@ -102,11 +118,11 @@ class OneSolve(HeavisideDynamics):
 
     name: str = "one_solve"
 
-    def rhs(self, cls: ComplementarityLagrangianSystem, modes: ca.SX, weights: ca.SX,
-            forces: ca.SX) -> ca.SX:
+    def terms(self, cls: ComplementarityLagrangianSystem, modes: ca.SX, weights: ca.SX,
+              forces: ca.SX) -> DynamicsTerms:
         theta_ode = weights[0]
-        return ca.vertcat(theta_ode * cls.v, cls.solve_mass(ca.mtimes(forces, weights)),
-                          theta_ode)
+        return DynamicsTerms(ca.vertcat(
+            theta_ode * cls.v, cls.solve_mass(ca.mtimes(forces, weights)), theta_ode))
 
 
 @dataclass(frozen=True)
@@ -116,9 +132,35 @@ class PerModeSolves(HeavisideDynamics):
 
     name: str = "per_mode_solves"
 
-    def rhs(self, cls: ComplementarityLagrangianSystem, modes: ca.SX, weights: ca.SX,
-            forces: ca.SX) -> ca.SX:
-        return ca.mtimes(modes, weights)
+    def terms(self, cls: ComplementarityLagrangianSystem, modes: ca.SX, weights: ca.SX,
+              forces: ca.SX) -> DynamicsTerms:
+        return DynamicsTerms(ca.mtimes(modes, weights))
+
+
+@dataclass(frozen=True)
+class InverseDynamics(HeavisideDynamics):
+    """Accelerations a (one per velocity) as auxiliary variables of every stage point:
+
+        f = (theta_ODE v, a, theta_ODE),   M(q) a - sum_k theta_k F_k = 0.
+
+    No expression holds M^{-1}: the equation is linear in a and the NLP's derivatives
+    are those of M(q) a and of the forces (solo12: Hessian about 2.8x cheaper than
+    `OneSolve`'s), for n_v more variables and equalities per stage point. The solutions
+    are those of the explicit forms, but IPOPT's path to them is not: on the hopper bench
+    the lifted NLPs need many more iterations, and with loose stepping-stone NLPs end in
+    a worse local solution (benchmarks/dynamics_forms.md). Opt-in for that reason.
+    """
+
+    name: str = "inverse_dynamics"
+    explicit: ClassVar[bool] = False
+
+    def terms(self, cls: ComplementarityLagrangianSystem, modes: ca.SX, weights: ca.SX,
+              forces: ca.SX) -> DynamicsTerms:
+        a = ca.vertcat(*[ca.SX.sym(f"a_{name}") for name in cls.v_names])
+        theta_ode = weights[0]
+        return DynamicsTerms(
+            rhs=ca.vertcat(theta_ode * cls.v, a, theta_ode), auxiliary=a,
+            equations=ca.mtimes(cls.mass_matrix, a) - ca.mtimes(forces, weights))
 
 
 @dataclass(frozen=True)
@@ -147,8 +189,10 @@ class Inelastic:
             "stewart" (one region per sign pattern of the switching functions, one
             contact with planar or no friction).
         dynamics: how the Heaviside form writes sum_k theta_k f_k (module docstring):
-            `OneSolve()` (default) or `PerModeSolves()`. The Stewart form hands every
-            region's mode to FESD separately, so there is nothing to regroup there.
+            `OneSolve()` (default), `PerModeSolves()` or `InverseDynamics()`
+            (accelerations as auxiliary variables). The Stewart form hands every region's
+            mode to FESD separately, so there is nothing to regroup there; it takes the
+            explicit strategies and ignores them.
     """
 
     normal_switching: str = "separate"
@@ -178,6 +222,11 @@ class Inelastic:
                 "use `Elastic()` (single frictionless contact) or set restitution = 0"
             )
         if self.form == "stewart":
+            if not self.dynamics.explicit:
+                raise IncompatibleOptions(
+                    f"`dynamics={self.dynamics!r}` adds auxiliary variables, which only the "
+                    "Heaviside form carries: use form='heaviside' or an explicit strategy "
+                    "such as OneSolve()")
             return self._build_stewart(cls)
         n = cls.n_q
         t = ca.SX.sym("t")
@@ -239,11 +288,12 @@ class Inelastic:
         modes = ca.horzcat(*modes, *aux_modes)
         region_names += aux_names
         alpha = ca.vertcat(*alphas)
-        rhs = self.dynamics.rhs(cls, modes, weights, ca.horzcat(*forces))
+        terms = self.dynamics.terms(cls, modes, weights, ca.horzcat(*forces))
         state_names = (*cls.q_names, *cls.v_names, "t")
         pss = HeavisideSystem(
-            x=y, u=cls.u, alpha=alpha, rhs=rhs, switching=ca.vertcat(*switching),
+            x=y, u=cls.u, alpha=alpha, rhs=terms.rhs, switching=ca.vertcat(*switching),
             state_names=state_names, control_names=cls.control_names,
+            auxiliary=terms.auxiliary, auxiliary_equations=terms.equations,
         )
         return TimeFreezingSystem(
             pss=pss, kind="inelastic", clock_index=2 * n, q_index=slice(0, n),
