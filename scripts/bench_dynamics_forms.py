@@ -1,7 +1,7 @@
 """How the time-freezing right-hand side is written: per-mode solves, one solve, and the
 inverse-dynamics form, side by side (issues 30/31, benchmarks/dynamics_forms.md).
 
-    python scripts/bench_dynamics_forms.py [--samples 200] [--repeat 5] [--plans 2]
+    python scripts/bench_dynamics_forms.py [--samples 200] [--repeat 5] [--plans 1]
                                            [--out benchmarks/dynamics_forms.md]
 
 For the hopper (TF-8 bench task), the monoped (TF-9) and solo12 (floating base, four
@@ -20,7 +20,8 @@ with `Function.map`, best of --repeat, per evaluation) of f, of its Jacobian and
 Hessian of lambda^T f (what IPOPT's Lagrangian Hessian evaluates per stage point), and
 the nonzeros of the Jacobian and Hessian. Then it solves the hopper plan
 (`hopper_problem("bench")`, `hopper_options("bench")`, as scripts/bench_hopper.py's first
-row) with each form in turn, --plans rounds.
+row, and the same with every NLP solved to IPOPT's tol) with each form in turn, --plans
+rounds.
 """
 
 from __future__ import annotations
@@ -184,30 +185,36 @@ def with_dynamics(problem, dynamics: HeavisideDynamics):
 
 
 def hopper_plans(n_runs: int) -> list[dict]:
-    """The hopper bench plan with each form in turn, `n_runs` rounds."""
+    """The hopper bench plan with each form in turn, `n_runs` rounds, with the bench
+    settings (stepping-stone NLPs to IPOPT tolerance 0.1) and with every NLP to 1e-8."""
     from tfcontact.ocp.contact import solve_contact
     from tfcontact.scenes.hopper import hopper_options, hopper_problem
 
-    options = hopper_options("bench")
+    bench = hopper_options("bench")
+    tight = dataclasses.replace(bench, nlp=dataclasses.replace(bench.nlp,
+                                                               intermediate_tol=None))
+    settings = (("bench", bench), (f"every NLP to {bench.nlp.tol:g}", tight))
     rows = []
     for run in range(n_runs):
-        for form, dynamics in FORMS:
-            start = time.perf_counter()
-            _, _, problem = hopper_problem("bench")
-            problem = with_dynamics(problem, dynamics)
-            result = solve_contact(problem, options, verbose=False)
-            wall = time.perf_counter() - start
-            ocp = result.ocp
-            rows.append({
-                "form": form, "run": run + 1, "wall": wall,
-                "solve": result.timings["solve"], "evaluations": ocp.mpcc_result.evaluation_time,
-                "iterations": ocp.total_iterations, "nlps": ocp.n_nlps, "cost": ocp.cost,
-                "x_end": float(result.y[-1, 0]), "status": result.status,
-            })
-            row = rows[-1]
-            print(f"hopper plan, {form}, run {run + 1}: {wall:.2f} s, "
-                  f"{row['iterations']} iterations, cost {row['cost']:.4f}, {row['status']}",
-                  flush=True)
+        for setting, options in settings:
+            for form, dynamics in FORMS:
+                start = time.perf_counter()
+                _, _, problem = hopper_problem("bench")
+                problem = with_dynamics(problem, dynamics)
+                result = solve_contact(problem, options, verbose=False)
+                wall = time.perf_counter() - start
+                ocp = result.ocp
+                rows.append({
+                    "form": form, "settings": setting, "run": run + 1, "wall": wall,
+                    "solve": result.timings["solve"],
+                    "evaluations": ocp.mpcc_result.evaluation_time,
+                    "iterations": ocp.total_iterations, "nlps": ocp.n_nlps, "cost": ocp.cost,
+                    "x_end": float(result.y[-1, 0]), "status": result.status,
+                })
+                row = rows[-1]
+                print(f"hopper plan, {form}, {setting}, run {run + 1}: {wall:.2f} s, "
+                      f"{row['iterations']} iterations, cost {row['cost']:.4f}, "
+                      f"{row['status']}", flush=True)
     return rows
 
 
@@ -235,28 +242,27 @@ def expression_table(results: dict[str, list[Measure]], builds: dict[str, float]
 
 
 def plan_table(rows: list[dict]) -> list[str]:
-    lines = ["| form | run | wall [s] | NLP solves [s] | function evaluations [s] | NLPs | "
-             "IPOPT iterations | ms per iteration | cost | x(T) | status |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| form | settings | run | wall [s] | NLP solves [s] | function evaluations [s] | "
+             "NLPs | IPOPT iterations | ms per iteration | cost | x(T) | status |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(
-            f"| {r['form']} | {r['run']} | {r['wall']:.2f} | {r['solve']:.2f} | "
-            f"{r['evaluations']:.2f} | {r['nlps']} | {r['iterations']} | "
+            f"| {r['form']} | {r['settings']} | {r['run']} | {r['wall']:.2f} | "
+            f"{r['solve']:.2f} | {r['evaluations']:.2f} | {r['nlps']} | {r['iterations']} | "
             f"{1e3 * r['solve'] / max(r['iterations'], 1):.1f} | {r['cost']:.4f} | "
             f"{r['x_end']:.4f} | {r['status']} |")
     lines.append("")
-    best = {}
-    for form, _ in FORMS:
-        mine = [r for r in rows if r["form"] == form]
-        best[form] = {key: min(r[key] for r in mine) for key in ("wall", "solve", "evaluations")}
-        lines.append(f"{form}: best wall {best[form]['wall']:.2f} s, best NLP solves "
-                     f"{best[form]['solve']:.2f} s, best evaluations "
-                     f"{best[form]['evaluations']:.2f} s  ")
-    reference = best["per-mode solves"]
-    for form in list(best)[1:]:
-        lines.append(f"ratio per-mode solves / {form} (best of each): wall "
-                     f"{reference['wall'] / best[form]['wall']:.2f}, evaluations "
-                     f"{reference['evaluations'] / best[form]['evaluations']:.2f}  ")
+    for setting in dict.fromkeys(r["settings"] for r in rows):
+        best = {}
+        for form, _ in FORMS:
+            mine = [r for r in rows if r["form"] == form and r["settings"] == setting]
+            best[form] = {key: min(r[key] for r in mine)
+                          for key in ("wall", "solve", "evaluations")}
+        reference = best["per-mode solves"]
+        for form in list(best)[1:]:
+            lines.append(f"{setting}: ratio per-mode solves / {form} (best of each): wall "
+                         f"{reference['wall'] / best[form]['wall']:.2f}, evaluations "
+                         f"{reference['evaluations'] / best[form]['evaluations']:.2f}  ")
     return lines
 
 
@@ -264,7 +270,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=int, default=200)
     parser.add_argument("--repeat", type=int, default=5)
-    parser.add_argument("--plans", type=int, default=2, help="hopper solves per form (0: none)")
+    parser.add_argument("--plans", type=int, default=1,
+                        help="rounds of hopper solves, each form and setting (0: none)")
     parser.add_argument("--out", default="benchmarks/dynamics_forms.md")
     args = parser.parse_args()
     results, builds, equal = {}, {}, {}
@@ -289,8 +296,8 @@ def main() -> None:
         *expression_table(results, builds, equal)]
     if args.plans > 0:
         rows = hopper_plans(args.plans)
-        lines += ["", "Hopper plan (`hopper_problem(\"bench\")`, `hopper_options(\"bench\")`):",
-                  "", *plan_table(rows)]
+        lines += ["", "Hopper plan (`hopper_problem(\"bench\")`, `hopper_options(\"bench\")` "
+                  "and the same with every NLP to IPOPT's tol):", "", *plan_table(rows)]
     text = "\n".join(lines)
     print(text)
     out = Path(args.out)

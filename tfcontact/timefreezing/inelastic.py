@@ -144,7 +144,7 @@ class InverseDynamics(HeavisideDynamics):
         f = (theta_ODE v, a, theta_ODE),   M(q) a - sum_k theta_k F_k = 0.
 
     No expression holds M^{-1}: the equation is linear in a and the NLP's derivatives
-    are those of M(q) a and of the forces (solo12: Hessian about 2.8x cheaper than
+    are those of M(q) a and of the forces (solo12: Hessian about 2.2x cheaper than
     `OneSolve`'s), for n_v more variables and equalities per stage point. The solutions
     are those of the explicit forms, but IPOPT's path to them is not: on the hopper bench
     the lifted NLPs need many more iterations, and with loose stepping-stone NLPs end in
