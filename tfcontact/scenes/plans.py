@@ -313,8 +313,9 @@ def task_plan(source: str | Path) -> Plan:
         setup = build_task(data)
         return PlanSetup(setup.robot, setup.problem, setup.options, setup.scene)
 
+    stages = (Discover(build), ExactResolve()) if data.exact_resolve else (Discover(build),)
     return Plan(name=data.name, summary=data.description or f"task file {path}",
-                tasks=("task",), stages=(Discover(build),))
+                tasks=("task",), stages=stages)
 
 
 def plan_named(name: str | Path) -> Plan:

@@ -24,6 +24,7 @@ from tfcontact.robot.terrain import Region, Terrain
 from tfcontact.task.spec import PlaneTerrain, Task
 
 UNBOUNDED = 1e20  # IPOPT's infinity: a URDF's 1.8e308 "no limit" means none
+RESTING_GAP = 1e-3  # [m] the largest end gap of a contact that `goals.end_height` rests
 
 
 @dataclass(frozen=True)
@@ -73,7 +74,7 @@ def build_task(task: Task) -> TaskSetup:
     """
     from tfcontact.ocp import Constraint
     from tfcontact.ocp.contact import ContactProblem
-    from tfcontact.robot import ContactSpec, Ground, load_robot
+    from tfcontact.robot import BASE_COORDINATES, ContactSpec, Ground, load_robot
     from tfcontact.task.presets import SOLVER_PRESETS
     from tfcontact.timefreezing import Inelastic, time_freeze
     from tfcontact.timefreezing.from_robot import from_robot
@@ -84,11 +85,12 @@ def build_task(task: Task) -> TaskSetup:
                        contacts=tuple(ContactSpec(c.frame, c.radius) for c in task.contacts))
     names, _ = coordinate_names(robot)
     joints = [n for n in robot.model.names[1:] if n != "root_joint"]
+    base = [n for n, _ in BASE_COORDINATES[robot.spec.base]]
     actuated = list(joints if task.actuated is None else task.actuated)
-    unknown = [a for a in actuated if a not in joints]
+    unknown = [a for a in actuated if a not in joints and a not in base]
     if unknown:
-        raise InvalidInput(f"`actuated` names {unknown}, which are not joints of the model; "
-                           f"its joints: {joints}")
+        raise InvalidInput(f"`actuated` names {unknown}, which are neither joints nor base "
+                           f"coordinates of the model; its joints: {joints}, its base: {base}")
     if isinstance(task.terrain, PlaneTerrain):
         ground = Ground(height=task.terrain.height, normal=task.terrain.normal)
         frictions = [0.0 if c.friction is None else c.friction for c in task.contacts]
@@ -97,13 +99,15 @@ def build_task(task: Task) -> TaskSetup:
             task_region(task, robot), margin=max(c.radius for c in task.contacts))
         frictions = [_terrain_friction(ground, c.frame) if c.friction is None
                      else c.friction for c in task.contacts]
-    plain = from_robot(robot, ground, mu=frictions, a_n=task.a_n, actuated=actuated)
+    plain = from_robot(robot, ground, mu=frictions, a_n=task.a_n,
+                       actuated=[a for a in actuated if a in joints])
     contacts = tuple(dataclasses.replace(c, restitution=entry.restitution)
                      for c, entry in zip(plain.contacts, task.contacts, strict=True))
+    u, forces = _actuation(plain, names, actuated, joints)
     cls = dataclasses.replace(
-        plain, contacts=contacts, q_names=tuple(names),
+        plain, u=u, forces=forces, contacts=contacts, q_names=tuple(names), _functions={},
         v_names=tuple(f"v_{n}" for n in names),
-        control_names=tuple(f"u_{names[_v_index(robot, a)]}" for a in actuated))
+        control_names=tuple(f"u_{names[_v_index(robot, a, names)]}" for a in actuated))
     elastic = any(c.restitution > 0 for c in task.contacts)
     tf = time_freeze(cls, method=None if elastic else Inelastic(gap_scale=task.gap_scale))
 
@@ -144,6 +148,16 @@ def build_task(task: Task) -> TaskSetup:
             rows.append(ca.sumsqr(slip) - entry.no_slip_gain * c.gap)
     if rows:
         path = Constraint(ca.vertcat(*rows), upper=0.0)
+    # A contact asked to end resting on a surface ends touching the terrain: without it
+    # the plan may meet its end pose in flight above the surface. Half the goal's
+    # threshold, so that IPOPT's tolerance cannot leave the plan just outside it.
+    frames = [c.frame for c in task.contacts]
+    resting = [cls.contacts[frames.index(f)].gap for f in task.goals.end_height]
+    end_constraint = None
+    if resting:
+        q_end = y[tf.q_index]
+        end_constraint = Constraint(ca.substitute(ca.vertcat(*resting), cls.q, q_end),
+                              lower=0.0, upper=0.5 * RESTING_GAP)
     guess = None
     if task.guess == "reference":
         guess = np.column_stack([
@@ -155,8 +169,11 @@ def build_task(task: Task) -> TaskSetup:
         u_lower=-u_bound, u_upper=u_bound,
         q_lower=lower[:len(names)], q_upper=upper[:len(names)],
         v_lower=lower[len(names):], v_upper=upper[len(names):],
-        path=path, goals=_goals(task, robot, cls), guess=guess)
+        path=path, terminal=end_constraint, goals=_goals(task, robot, cls), guess=guess)
     options = SOLVER_PRESETS[task.solver]()
+    if task.complementarity_tolerance is not None:
+        options = dataclasses.replace(options, homotopy=dataclasses.replace(
+            options.homotopy, tolerance=task.complementarity_tolerance))
     scene = {"terrain": task.terrain.to_dict()}
     return TaskSetup(task, robot, problem, options, scene, ground)
 
@@ -228,8 +245,29 @@ def _terrain_friction(terrain: Terrain, frame: str) -> float:
             "or a `[terrain] region` that keeps only surfaces of one friction") from None
 
 
-def _v_index(robot: Any, joint: str) -> int:
-    return robot.model.joints[robot.model.getJointId(joint)].idx_v
+def _v_index(robot: Any, name: str, names: list[str]) -> int:
+    """The velocity index of a joint or base coordinate `name` (`names`: the
+    coordinates' names, the base's first)."""
+    if robot.model.existJointName(name):
+        return robot.model.joints[robot.model.getJointId(name)].idx_v
+    return names.index(name)
+
+
+def _actuation(plain: Any, names: list[str], actuated: list[str], joints: list[str]
+               ) -> tuple[ca.SX, ca.SX]:
+    """(u, f_v) with one control per `actuated` name, in order: a joint's force (as
+    `from_robot` made it) or a generalised force on a base coordinate, the idealised
+    actuator of TF-8's hopper, whose hip torque turns the leg angle directly."""
+    u = ca.SX.sym("u", len(actuated))
+    on_joints = [u[k] for k, a in enumerate(actuated) if a in joints]
+    forces = ca.substitute(plain.forces, plain.u, ca.vertcat(*on_joints)) if on_joints \
+        else plain.forces
+    for k, a in enumerate(actuated):
+        if a not in joints:
+            direction = np.zeros(len(names))
+            direction[names.index(a)] = 1.0
+            forces = forces + ca.DM(direction) * u[k]
+    return u, forces
 
 
 def _check_names(task: Task, state_names: list[str], frames: list[str]) -> None:
@@ -306,7 +344,12 @@ def _effort(task: Task, robot: Any, actuated: list[str]) -> np.ndarray:
         if joint in task.effort:
             bounds.append(task.effort[joint])
             continue
-        limit = float(robot.model.effortLimit[_v_index(robot, joint)])
+        if not robot.model.existJointName(joint):
+            raise InvalidInput(f"the base coordinate `{joint}` is actuated but has no effort "
+                               f"limit (a URDF gives none for the base); give one in the "
+                               f"task: effort = {{ {joint} = 50.0 }}")
+        limit = float(robot.model.effortLimit[robot.model.joints[
+            robot.model.getJointId(joint)].idx_v])
         if not (0.0 < limit < UNBOUNDED):
             raise InvalidInput(f"joint `{joint}` has no effort limit in the URDF; give one "
                                f"in the task: effort = {{ {joint} = 50.0 }}")
@@ -331,7 +374,7 @@ def _goals(task: Task, robot: Any, cls: Any) -> tuple:
         lowest = ca.Function(f"z_low_{frame}", [cls.q],
                              [robot.twin.frame_position(frame)[2] - contact.radius])
         goals.append(EndHeight(frames.index(frame), height, task.goals.height_tolerance,
-                               lowest))
+                               lowest, touch=RESTING_GAP))
     if task.goals.moves:
         goals.append(Moves())
     return tuple(goals)

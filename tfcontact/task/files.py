@@ -68,7 +68,8 @@ SHIPPED = Path(__file__).resolve().parent / "shipped"
 
 _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "start",
         "actuated", "effort", "bounds", "terrain", "waypoints", "goals", "costs", "solver",
-        "guess", "a_n", "gap_scale"}
+        "guess", "a_n", "gap_scale", "exact_resolve",
+        "complementarity_tolerance"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain"}
 _TERRAIN = {"height", "normal"}
@@ -143,6 +144,8 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         costs=Costs(**_table(top.get("costs", {}), "costs", _COSTS)),
         solver=top.get("solver", "default"), guess=top.get("guess", "start"),
         a_n=top.get("a_n", 100.0), gap_scale=top.get("gap_scale", 30.0),
+        exact_resolve=top.get("exact_resolve", False),
+        complementarity_tolerance=top.get("complementarity_tolerance"),
     )
 
 

@@ -314,6 +314,14 @@ class Task:
         a_n: the time-freezing auxiliary gain [m/s^2] of every contact.
         gap_scale: K [1/s] of the gap's switching function (about the inverse of a finite
             element's duration; `tfcontact.timefreezing.Inelastic.gap_scale`).
+        complementarity_tolerance: the residual at which the preset's MPCC homotopy stops
+            (`Homotopy.tolerance`; default: the preset's). A plan whose relaxed contacts
+            still act a millimetre above the surface fails its exact-impact replay; a
+            smaller residual costs more NLPs.
+        exact_resolve: after the discovery, re-solve the plan exactly along the contact
+            sequence it found (`tfcontact.ocp.polish`: no relaxation, impacts at the found
+            times; one planar frictional contact), so that the written plan is the exact
+            one and is verified as such.
         description: a line for `tfcontact plan --list`.
     """
 
@@ -334,6 +342,8 @@ class Task:
     guess: str = "start"
     a_n: float = 100.0
     gap_scale: float = 30.0
+    complementarity_tolerance: float | None = None
+    exact_resolve: bool = False
     description: str = ""
 
     def __post_init__(self) -> None:
@@ -394,5 +404,12 @@ class Task:
                                                unit="m/s^2"))
         object.__setattr__(self, "gap_scale", finite(self.gap_scale, "gap_scale", low=0.0,
                                                      strict=True, unit="1/s"))
+        if self.complementarity_tolerance is not None:
+            object.__setattr__(self, "complementarity_tolerance", finite(
+                self.complementarity_tolerance, "complementarity_tolerance", low=0.0,
+                strict=True))
+        if not isinstance(self.exact_resolve, bool):
+            raise InvalidInput(f"`exact_resolve` must be true or false, got "
+                               f"{self.exact_resolve!r}")
         if not isinstance(self.description, str):
             raise InvalidInput("`description` must be a string")
