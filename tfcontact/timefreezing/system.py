@@ -42,7 +42,9 @@ class TimeFreezingSystem:
         modes: the mode vector fields as columns, shape (n_y, n_f) (for the Heaviside form
             the same fields that `weights` combine).
         weights: Heaviside form only: theta(alpha), shape (n_f, 1), so that
-            pss.rhs == modes @ weights; None for the Stewart form.
+            pss.rhs == modes @ weights (with `InverseDynamics` where the acceleration
+            variables solve their equations M(q) a = sum theta_k F_k); None for the
+            Stewart form.
         region_names: one label per mode.
         info: method parameters (a_n, stiffness, damping, push gain, ...).
     """
