@@ -51,3 +51,16 @@ def test_settings_variants_change_one_setting_each(load_script):
     for name, variant in settings.TASK_VARIANTS.items():
         changed = [n for n in task_names if getattr(variant(task), n) != getattr(task, n)]
         assert len(changed) == 1, (name, changed)
+
+
+def test_task_bench_tabulates_one_row_per_task_with_every_column(load_script):
+    """`scripts/bench_tasks.py`'s table: a header of its columns, one row per measured
+    task, times to 0.01 s, checks as written."""
+    bench = load_script("bench_tasks")
+    row = {column: f"<{column}>" for column in bench.COLUMNS}
+    row.update({"solve [s]": 4.356, "verified": True})
+    lines = bench.table([row, row]).splitlines()
+    assert len(lines) == 4
+    assert lines[0].count("|") == len(bench.COLUMNS) + 1
+    assert "| 4.36 |" in lines[2] and "| True |" in lines[3]
+    assert lines[2].split(" | ")[0] == "| <task>"

@@ -1,0 +1,89 @@
+"""Build and solve times of the shipped task files, one after another in one run.
+
+    python scripts/bench_tasks.py                        # every shipped task
+    python scripts/bench_tasks.py hopper-step hopper-platform --out benchmarks/tasks.md
+
+Per task: the task build (URDF load, symbolic twin, terrain, contact problem:
+`build_task`), the NLP build and the solve (`solve_contact`, one attempt, the task's own
+preset), the verification and the coal collision check of the URDF's bodies against the
+terrain; the status, whether the plan is verified and meets its goals, and the build's
+share of the solve (issue 29 asks for below 20 %). Prints a markdown table and writes it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import datetime
+import platform
+import time
+from pathlib import Path
+
+COLUMNS = ("task", "DoF", "contacts", "task build [s]", "NLP build [s]", "solve [s]",
+           "build / solve", "IPOPT iterations", "verify [s]", "collision check [s]",
+           "status", "verified", "goals met", "bodies clear")
+
+
+def measure(name: str) -> dict:
+    """One task, built and solved once (module docstring)."""
+    from tfcontact.ocp.contact import solve_contact
+    from tfcontact.task import build_task, load_task, shipped_tasks
+    from tfcontact.task.spec import PrimitiveTerrain
+    from tfcontact.verify.collision import check_robot_collisions, terrain_obstacles
+
+    task = load_task(shipped_tasks().get(name, name))
+    start = time.perf_counter()
+    setup = build_task(task)
+    task_build = time.perf_counter() - start
+    options = dataclasses.replace(setup.options, attempts=1)
+    result = solve_contact(setup.problem, options, verbose=False, throw=False)
+    clear, collision_time = None, float("nan")
+    if isinstance(task.terrain, PrimitiveTerrain):
+        start = time.perf_counter()
+        report = check_robot_collisions(setup.robot, result.physical.t, result.physical.q,
+                                        terrain_obstacles(task.terrain.terrain))
+        collision_time, clear = time.perf_counter() - start, report.passed
+    build = task_build + result.timings["build"]
+    return {"task": task.name, "DoF": setup.robot.nq, "contacts": len(task.contacts),
+            "task build [s]": task_build, "NLP build [s]": result.timings["build"],
+            "solve [s]": result.timings["solve"],
+            "build / solve": f"{100 * build / result.timings['solve']:.0f} %",
+            "IPOPT iterations": result.ocp.total_iterations,
+            "verify [s]": result.timings["verify"], "collision check [s]": collision_time,
+            "status": result.status, "verified": result.verification.passed,
+            "goals met": result.task.passed,
+            "bodies clear": "flat ground" if clear is None else clear}
+
+
+def table(rows: list[dict]) -> str:
+    def cell(value: object) -> str:
+        return f"{value:.2f}" if isinstance(value, float) else str(value)
+
+    lines = ["| " + " | ".join(COLUMNS) + " |", "|" + " --- |" * len(COLUMNS)]
+    lines += ["| " + " | ".join(cell(row[c]) for c in COLUMNS) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    from tfcontact.task import shipped_tasks
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("names", nargs="*", help="shipped task names or task files "
+                        "(default: every shipped task)")
+    parser.add_argument("--out", type=Path, default=None, help="write the table here")
+    args = parser.parse_args(argv)
+    rows = []
+    for name in args.names or sorted(shipped_tasks()):
+        rows.append(measure(name))
+        print(table(rows[-1:]).splitlines()[-1], flush=True)
+    text = (f"Measured {datetime.date.today()} on {platform.node()} "
+            f"({platform.processor() or platform.machine()}), one task at a time:\n\n"
+            + table(rows) + "\n")
+    print(text)
+    if args.out is not None:
+        args.out.write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
