@@ -529,6 +529,7 @@ def test_a_shipped_terrain_task_is_planned_verified_and_clear_of_the_terrain(nam
     import dataclasses
 
     from tfcontact.ocp.contact import solve_contact
+    from tfcontact.plan_format import terrain_directions, trajectory_from_result
     from tfcontact.verify.collision import check_robot_collisions, terrain_obstacles
 
     setup = build_task(load_task(shipped_tasks()[name]))
@@ -540,6 +541,14 @@ def test_a_shipped_terrain_task_is_planned_verified_and_clear_of_the_terrain(nam
     report = check_robot_collisions(setup.robot, result.physical.t, result.physical.q,
                                     terrain_obstacles(setup.task.terrain.terrain))
     assert report.passed, report.worst
+    # the file's contact forces in the world frame of the terrain's normal at the foot:
+    # the foot stands on flat tops only, where that is the scene's z
+    traj = trajectory_from_result(result, setup.robot.spec, setup.scene,
+                                  directions=terrain_directions(setup.robot, setup.terrain))
+    flat = trajectory_from_result(result, setup.robot.spec, setup.scene)
+    assert np.abs(traj.force).max() > 1.0
+    np.testing.assert_allclose(traj.force, flat.force, atol=1e-6 * np.abs(flat.force).max())
+    np.testing.assert_allclose(traj.impulse, flat.impulse, atol=1e-9)
 
 
 def test_the_readme_terrain_task_builds_and_models_what_the_foot_reaches():

@@ -427,3 +427,28 @@ def test_description_round_trips_through_strict_json():
 def test_validation_errors_name_the_field_and_the_fix(build, error, match):
     with pytest.raises(error, match=match):
         build()
+
+
+def test_trajectory_directions_follow_the_terrain_normal_at_the_foot(hopper, rng):
+    """`terrain_directions` (the sidecar's world frame of forces on a terrain): at a foot
+    beside a rounded box edge, the unit normal from the edge's centre line to the foot
+    (Pinocchio's foot position) and the planar tangent perpendicular to it."""
+    from tfcontact.plan_format import terrain_directions
+
+    q = rng.uniform(-0.5, 0.5, hopper.nv)
+    model, data = hopper.model, hopper.data
+    pin.framesForwardKinematics(model, data, q)
+    p = data.oMf[model.getFrameId("foot")].translation.copy()
+    rho = 0.01
+    box = Box(x=(p[0] + 0.03, INF), top=p[2] - 0.03, rounding=rho)
+    (n_w, t_w), = terrain_directions(hopper, Terrain((Plane(height=p[2] - 1.0), box)))(q)
+    centre = np.array([box.x[0] + rho, p[1], box.top - rho])
+    expected = (p - centre) / np.linalg.norm(p - centre)
+    np.testing.assert_allclose(n_w, expected, atol=1e-12)
+    assert t_w.shape == (3, 1)
+    np.testing.assert_allclose(t_w.ravel(), [expected[2], 0.0, -expected[0]], atol=1e-12)
+    # on a 20 % slope far from the box: the slope's normal, whatever the foot's height
+    slope = Terrain((Plane.sloped(p[2] - 0.3, (0.2, 0.0)),))
+    (n_w, _), = terrain_directions(hopper, slope)(q)
+    np.testing.assert_allclose(n_w, np.array([-0.2, 0.0, 1.0]) / math.hypot(0.2, 1.0),
+                               atol=1e-12)

@@ -3,7 +3,8 @@
 * `trajectory`: the trajectory file (`.npz` arrays + `.json` sidecar, checksums, format
   versions), physical-time recovery from the stored samples, the one frozen-rate
   tolerance (`tfcontact.timefreezing.FROZEN_RATE_TOL`).
-* `adapters`: results to trajectories (`trajectory_from_result`, `trajectory_from_polished`),
+* `adapters`: results to trajectories (`trajectory_from_result`, `trajectory_from_polished`;
+  `terrain_directions`: world normals and tangents along a terrain),
   the sidecar's robot and solver records, and the file's physics check (`check_plan`).
 
 `tfcontact.viz` (figures, replay) reads plans through this package only.
@@ -17,6 +18,7 @@ from tfcontact.plan_format.adapters import (
     find_impacts,
     plan_summary,
     solver_record,
+    terrain_directions,
     trajectory_from_polished,
     trajectory_from_result,
 )
@@ -45,6 +47,7 @@ __all__ = [
     "plan_summary",
     "save_trajectory",
     "solver_record",
+    "terrain_directions",
     "trajectory_from_polished",
     "trajectory_from_result",
 ]

@@ -159,8 +159,10 @@ def trajectory_from_result(
 
     Other args:
         directions: per CLS contact, (n_w (3,), T_w (3, n_t)): world normal and tangents
-            used to express impulses and forces in the world frame; default the ground of
-            `scene["terrain"]` (its "normal", default z; tangents as `robot.Ground`).
+            used to express impulses and forces in the world frame, or a function of q
+            returning them (a terrain whose normal changes along it: `terrain_directions`);
+            default the ground of `scene["terrain"]` (its "normal", default z; tangents as
+            `robot.Ground`).
         contact_map: per CLS contact, the index of the robot contact it belongs to; default
             one to one, or all to the single robot contact.
         closed_gap: a contact is closed, and may carry a force, where its gap <= this [m].
@@ -205,10 +207,16 @@ def trajectory_from_result(
         directions = [(np.asarray(ground.normal),
                        ground.tangents(c.n_tangents == 1) if c.n_tangents else np.zeros((3, 0)))
                       for c in cls.contacts]
-    directions = [(np.asarray(n, float).reshape(3), np.asarray(t, float).reshape(3, -1))
-                  for n, t in directions]
-    if len(directions) != n_c:
-        raise InvalidInput(f"`directions` has {len(directions)} entries, expected {n_c}")
+    along_q = callable(directions)
+
+    def checked(entries: Any) -> list[tuple[np.ndarray, np.ndarray]]:
+        out = [(np.asarray(n, float).reshape(3), np.asarray(t, float).reshape(3, -1))
+               for n, t in entries]
+        if len(out) != n_c:
+            raise InvalidInput(f"`directions` has {len(out)} entries, expected {n_c}")
+        return out
+
+    constant = None if along_q else checked(directions)
 
     ocp = result.ocp
     tau, y, interval = _samples(ocp)
@@ -223,8 +231,11 @@ def trajectory_from_result(
     vn_all = np.stack([np.asarray(normals(qk)).T @ vk for qk, vk in zip(q, v, strict=True)])
     vn_all = vn_all.reshape(n, n_c)
 
-    def world(lam_n: float, lam_t: np.ndarray, i: int) -> np.ndarray:
-        n_w, t_w = directions[i]
+    sampled = [checked(directions(qk)) for qk in q] if along_q else None
+
+    def world(lam_n: float, lam_t: np.ndarray, i: int, k: int) -> np.ndarray:
+        """Contact i's impulse or force (lam_n, lam_t) in the world frame at sample k."""
+        n_w, t_w = sampled[k][i] if along_q else constant[i]
         return lam_n * n_w + (t_w @ lam_t if t_w.shape[1] else 0.0)
 
     gap = np.zeros((n, n_robot))
@@ -249,7 +260,7 @@ def trajectory_from_result(
         for i in range(n_c):
             n_t = cls.contacts[i].n_tangents
             impulse[k, contact_map[i]] += world(imp.normal_impulse[i],
-                                                imp.tangential_impulse[i, :n_t], i)
+                                                imp.tangential_impulse[i, :n_t], i, k)
     # The physical layer sees frozen pieces between element boundaries only; one that
     # starts or ends at a stage point gets its impulse here, from M (v+ - v-) = A Lambda
     # over the contacts closed at its entry (A: their normals and tangents).
@@ -274,7 +285,8 @@ def trajectory_from_result(
                               np.asarray(mass(q[entry])) @ (v[exit_] - v[entry]), rcond=None)[0]
         col = 0
         for i, a in blocks:
-            impulse[exit_, contact_map[i]] += world(lam[col], lam[col + 1:col + a.shape[1]], i)
+            impulse[exit_, contact_map[i]] += world(lam[col], lam[col + 1:col + a.shape[1]], i,
+                                                    entry)
             col += a.shape[1]
 
     # forces on running intervals with a closed contact, from the momentum balance
@@ -308,7 +320,7 @@ def trajectory_from_result(
         col = 0
         for i in range(n_c):
             n_t = cls.contacts[i].n_tangents
-            force[k, contact_map[i]] += world(lam[col], lam[col + 1 : col + 1 + n_t], i)
+            force[k, contact_map[i]] += world(lam[col], lam[col + 1 : col + 1 + n_t], i, k)
             col += 1 + n_t
 
     verification = result.verification.to_dict()
@@ -321,6 +333,28 @@ def trajectory_from_result(
         model=describe_robot(robot, cls), task=_jsonable(task or {}),
         frozen_rate_tol=FROZEN_RATE_TOL,
     )
+
+
+def terrain_directions(robot: Any, terrain: Any) -> Any:
+    """q -> [(n_w, T_w) per contact of `robot`]: the world normal and tangents of each
+    contact sphere's nearest terrain point (`Robot.contact_terms`), the `directions` of
+    `trajectory_from_result` on a `tfcontact.robot.Terrain` (slopes, box edges)."""
+    import casadi as ca
+
+    terms = robot.contact_terms(terrain)
+    outputs = []
+    for t in terms:
+        outputs += [ca.DM(t.world_normal) if isinstance(t.world_normal, np.ndarray)
+                    else t.world_normal,
+                    ca.DM(t.world_tangents) if isinstance(t.world_tangents, np.ndarray)
+                    else t.world_tangents]
+    evaluate = ca.Function("directions", [robot.twin.q], outputs)
+
+    def directions(q: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        values = [np.asarray(x) for x in evaluate(q)]  # two outputs per contact
+        return [(values[2 * i].ravel(), values[2 * i + 1]) for i in range(len(terms))]
+
+    return directions
 
 
 def _frozen_pieces(tau: np.ndarray, clock: np.ndarray,

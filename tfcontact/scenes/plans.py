@@ -39,12 +39,15 @@ class PlanReport:
 @dataclass(frozen=True)
 class PlanSetup:
     """What a plan needs to run: the robot, problem, solver options and the scene stored
-    in the trajectory's sidecar (its ground and obstacles)."""
+    in the trajectory's sidecar (its ground and obstacles); `terrain`: the
+    `tfcontact.robot.Terrain` the contacts' gaps model, if one (the trajectory's forces
+    then follow its normal along the plan), else None (one plane: the scene's normal)."""
 
     robot: Any
     problem: Any
     options: Any
     scene: dict
+    terrain: Any = None
 
 
 @dataclass(frozen=True)
@@ -97,7 +100,7 @@ class Discover(Stage):
 
     def run(self, given: StageInput) -> PlanOutcome:
         from tfcontact.ocp.contact import solve_contact
-        from tfcontact.plan_format.adapters import trajectory_from_result
+        from tfcontact.plan_format import terrain_directions, trajectory_from_result
 
         setup = self.build(given.task)
         robot, problem, options = setup.robot, setup.problem, setup.options
@@ -107,7 +110,10 @@ class Discover(Stage):
             print(f"plan {given.plan} ({given.task}): {robot.model.name}, nq = {robot.nq}, "
                   f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
         result = solve_contact(problem, options, verbose=given.verbose)
+        directions = (None if setup.terrain is None
+                      else terrain_directions(robot, setup.terrain))
         trajectory = trajectory_from_result(result, robot.spec, setup.scene,
+                                            directions=directions,
                                             task=result.task.to_dict())
         return PlanOutcome(trajectory, robot, result.status, result.success,
                            result.summary(), task=result.task.to_dict(), result=result,
@@ -310,8 +316,11 @@ def task_plan(source: str | Path) -> Plan:
     data = load_task(path)
 
     def build(_: str | None) -> PlanSetup:
+        from tfcontact.robot import Terrain
+
         setup = build_task(data)
-        return PlanSetup(setup.robot, setup.problem, setup.options, setup.scene)
+        terrain = setup.terrain if isinstance(setup.terrain, Terrain) else None
+        return PlanSetup(setup.robot, setup.problem, setup.options, setup.scene, terrain)
 
     stages = (Discover(build), ExactResolve()) if data.exact_resolve else (Discover(build),)
     return Plan(name=data.name, summary=data.description or f"task file {path}",
