@@ -490,11 +490,37 @@ def test_an_end_height_goal_constrains_the_contact_to_end_touching_the_terrain(t
     y = np.zeros(tf.y.numel())
     y[tf.q_index] = [0.0, 0.52, 0.3]  # toe centre at 0.22 m: gap 0.2 m
     assert float(end(y)) == pytest.approx(0.2)
-    assert (problem.terminal.lower, problem.terminal.upper) == (0.0, 0.5 * RESTING_GAP)
+    np.testing.assert_array_equal(problem.terminal.lower, [0.0])
+    np.testing.assert_array_equal(problem.terminal.upper, [0.5 * RESTING_GAP])
     height = [g for g in problem.goals if isinstance(g, EndHeight)]
     assert len(height) == 1 and height[0].touch == RESTING_GAP
     assert build_task(load_task(_edited(path, "\nend_height = { toe = 0.0 }", ""))
                       ).problem.terminal is None
+
+
+def test_periodic_states_end_where_they_start(task_file):
+    """`periodic` (a gait's period): x_i(T) - x_i(0) = 0 for the named states, after the
+    end-height rows; a name the robot has not is refused."""
+    path = _edited(task_file, "horizon = 1.0", 'horizon = 1.0\nperiodic = ["z", "v_leg"]')
+    path = _edited(path, "lift_offs = { toe = 1 }",
+                   "lift_offs = { toe = 1 }\nend_height = { toe = 0.0 }")
+    problem = build_task(load_task(path)).problem
+    tf = problem.system
+    end = ca.Function("end", [tf.y], [problem.terminal.expression])
+    y = np.zeros(tf.y.numel())
+    y[tf.q_index] = [0.3, 0.62, 0.3]  # x, z, leg
+    y[tf.v_index] = [1.0, -2.0, 0.5]
+    # gap 0.62 - 0.3 - 0.02 = 0.3; z - 0.32 (its start) = 0.3; v_leg - 0 = 0.5
+    np.testing.assert_allclose(np.asarray(end(y)).ravel(), [0.3, 0.3, 0.5], atol=1e-12)
+    np.testing.assert_array_equal(problem.terminal.lower, [0.0, 0.0, 0.0])
+    np.testing.assert_array_equal(problem.terminal.upper[1:], [0.0, 0.0])
+    _edited(path, '["z", "v_leg"]', '["z", "pitch"]')
+    with pytest.raises(InvalidInput, match=r"`periodic` names \['pitch'\], which the robot "
+                                           r"has not"):
+        build_task(load_task(path))
+    _edited(path, '["z", "pitch"]', '["z", "z"]')
+    with pytest.raises(InvalidInput, match="`periodic` must list distinct state names"):
+        load_task(path)
 
 
 def test_a_task_sets_the_homotopys_residual_and_asks_for_an_exact_resolve(task_file):

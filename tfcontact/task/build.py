@@ -153,11 +153,18 @@ def build_task(task: Task) -> TaskSetup:
     # threshold, so that IPOPT's tolerance cannot leave the plan just outside it.
     frames = [c.frame for c in task.contacts]
     resting = [cls.contacts[frames.index(f)].gap for f in task.goals.end_height]
-    end_constraint = None
+    end_rows, lower_end, upper_end = [], [], []
     if resting:
-        q_end = y[tf.q_index]
-        end_constraint = Constraint(ca.substitute(ca.vertcat(*resting), cls.q, q_end),
-                              lower=0.0, upper=0.5 * RESTING_GAP)
+        end_rows.append(ca.substitute(ca.vertcat(*resting), cls.q, y[tf.q_index]))
+        lower_end += [0.0] * len(resting)
+        upper_end += [0.5 * RESTING_GAP] * len(resting)
+    for name in task.periodic:  # a gait's period: the state ends where it started
+        i = state_names.index(name)
+        end_rows.append(x[i] - float(x0[i]))
+        lower_end.append(0.0)
+        upper_end.append(0.0)
+    end_constraint = None if not end_rows else Constraint(
+        ca.vertcat(*end_rows), lower=np.array(lower_end), upper=np.array(upper_end))
     guess = None
     if task.guess == "reference":
         guess = np.column_stack([
@@ -280,7 +287,8 @@ def _check_names(task: Task, state_names: list[str], frames: list[str]) -> None:
               ("goals.end", task.goals.end, coordinates),
               ("goals.progress", task.goals.progress, coordinates),
               ("goals.lift_offs", task.goals.lift_offs, frames),
-              ("goals.end_height", task.goals.end_height, frames)]
+              ("goals.end_height", task.goals.end_height, frames),
+              ("periodic", dict.fromkeys(task.periodic), state_names)]
     for where, mapping, allowed in fields:
         unknown = [k for k in mapping if k not in allowed]
         if unknown:

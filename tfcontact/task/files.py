@@ -69,7 +69,7 @@ SHIPPED = Path(__file__).resolve().parent / "shipped"
 _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "start",
         "actuated", "effort", "bounds", "terrain", "waypoints", "goals", "costs", "solver",
         "guess", "a_n", "gap_scale", "exact_resolve",
-        "complementarity_tolerance"}
+        "complementarity_tolerance", "periodic"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain"}
 _TERRAIN = {"height", "normal"}
@@ -96,6 +96,13 @@ def _table(data: object, where: str, keys: set[str], required: tuple[str, ...] =
     if missing:
         raise InvalidInput(f"`{where}` lacks {missing}")
     return dict(data)
+
+
+def _listed(value: object, where: str) -> tuple:
+    if not isinstance(value, list | tuple):
+        raise InvalidInput(f"`{where}` must be an array of names, e.g. [\"z\", \"v_z\"], "
+                           f"got {value!r}")
+    return tuple(value)
 
 
 def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
@@ -146,6 +153,7 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         a_n=top.get("a_n", 100.0), gap_scale=top.get("gap_scale", 30.0),
         exact_resolve=top.get("exact_resolve", False),
         complementarity_tolerance=top.get("complementarity_tolerance"),
+        periodic=_listed(top.get("periodic", ()), "periodic"),
     )
 
 

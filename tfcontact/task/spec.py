@@ -314,6 +314,9 @@ class Task:
         a_n: the time-freezing auxiliary gain [m/s^2] of every contact.
         gap_scale: K [1/s] of the gap's switching function (about the inverse of a finite
             element's duration; `tfcontact.timefreezing.Inelastic.gap_scale`).
+        periodic: coordinates and velocities that end where they start, x(T) = x(0) as a
+            terminal constraint (a gait's period: name every state but the base's forward
+            position, so that the gait repeats while it progresses).
         complementarity_tolerance: the residual at which the preset's MPCC homotopy stops
             (`Homotopy.tolerance`; default: the preset's). A plan whose relaxed contacts
             still act a millimetre above the surface fails its exact-impact replay; a
@@ -342,6 +345,7 @@ class Task:
     guess: str = "start"
     a_n: float = 100.0
     gap_scale: float = 30.0
+    periodic: tuple[str, ...] = ()
     complementarity_tolerance: float | None = None
     exact_resolve: bool = False
     description: str = ""
@@ -404,6 +408,12 @@ class Task:
                                                unit="m/s^2"))
         object.__setattr__(self, "gap_scale", finite(self.gap_scale, "gap_scale", low=0.0,
                                                      strict=True, unit="1/s"))
+        periodic = tuple(self.periodic)
+        if not all(isinstance(n, str) and n for n in periodic) or \
+                len(set(periodic)) != len(periodic):
+            raise InvalidInput(f"`periodic` must list distinct state names, got "
+                               f"{self.periodic!r}")
+        object.__setattr__(self, "periodic", periodic)
         if self.complementarity_tolerance is not None:
             object.__setattr__(self, "complementarity_tolerance", finite(
                 self.complementarity_tolerance, "complementarity_tolerance", low=0.0,
