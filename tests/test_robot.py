@@ -447,3 +447,24 @@ def test_spec_arguments_are_exclusive():
     with pytest.raises(IncompatibleOptions, match=r"takes base, locked_joints, contacts and "
                        r"locked_positions from the RobotSpec"):
         load_robot(spec, base="planar")
+
+
+def test_a_vertical_base_is_a_rail_in_z():
+    """base="vertical" (a leg test bench): one prismatic z coordinate before the joints,
+    the weight of the whole robot on it (h(q, 0)[z] = m g), planar contacts (one tangent)."""
+    import pinocchio as pin
+
+    from tfcontact.robot import BASE_COORDINATES, ContactSpec, load_robot
+    from tfcontact.timefreezing.from_robot import from_robot
+
+    robot = load_robot("hopper", base="vertical", contacts=(ContactSpec("foot", 0.02),))
+    assert BASE_COORDINATES["vertical"] == (("z", "m"),)
+    assert robot.nq == robot.nv == 3 and robot.planar
+    q = np.array([0.4, 0.3, 0.25])
+    h = ca.Function("h", [robot.twin.q, robot.twin.v], [robot.twin.h])(q, np.zeros(3))
+    mass = pin.computeTotalMass(robot.model)
+    assert float(h[0]) == pytest.approx(mass * 9.81, rel=1e-3)
+    np.testing.assert_allclose(np.asarray(ca.Function("m", [robot.twin.q], [robot.twin.M])(q)),
+                               pin.crba(robot.model, robot.data, q), atol=1e-12)
+    cls = from_robot(robot, mu=0.5)
+    assert cls.contacts[0].n_tangents == 1

@@ -597,14 +597,14 @@ def test_the_readme_terrain_task_builds_and_models_what_the_foot_reaches():
 
 def test_the_example_robot_data_task_builds_solo12s_leg_on_a_rail():
     """`solo12-leg-hop`: example-robot-data's solo12 reduced by the task file to a leg on
-    an x-z rail: 4 coordinates, the hip and knee actuated with the task's bound (not the
-    URDF's 1000 N m), the foot's sphere touching the ground at the start (Pinocchio's
-    foot height), the other legs' feet above it."""
+    a vertical rail (base `vertical`): 3 coordinates, the hip and knee actuated with the
+    task's bound (not the URDF's 1000 N m), the foot's sphere touching the ground at the
+    start (Pinocchio's foot height), the other legs' feet above it."""
     import pinocchio as pin
 
     setup = build_task(load_task(shipped_tasks()["solo12-leg-hop"]))
     cls = setup.problem.system.cls
-    assert cls.q_names == ("x", "z", "FL_HFE", "FL_KFE")
+    assert cls.q_names == ("z", "FL_HFE", "FL_KFE")
     assert cls.control_names == ("u_FL_HFE", "u_FL_KFE")
     np.testing.assert_allclose(setup.problem.u_upper, [6.0, 6.0])
     model, data = setup.robot.model, setup.robot.data
@@ -617,7 +617,7 @@ def test_the_example_robot_data_task_builds_solo12s_leg_on_a_rail():
     assert min(feet[f] for f in ("FR_FOOT", "HL_FOOT", "HR_FOOT")) > 0.15
 
 
-SOLO_LEG_NO_HOP = ("measured: the fast preset converges (about 20 s) with the foot never "
+SOLO_LEG_NO_HOP = ("measured: the fast preset converges (about 2 s) with the foot never "
                    "leaving the ground (lift-offs 0 of 1); the default preset and the "
                    "reference guess find a hop that fails its exact-impact replay")
 

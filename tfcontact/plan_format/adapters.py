@@ -454,6 +454,8 @@ BASE_MEANINGS: dict[str, str] = {
               "motion in the world x-z plane",
     "planar_xz": "root_joint = prismatic X, prismatic Z under the URDF's root link: "
                  "q_base = (x [m], z [m]), no rotation",
+    "vertical": "root_joint = prismatic Z under the URDF's root link: q_base = (z [m]), a "
+                "vertical rail",
     "floating": "root_joint = translation, then ZYX Euler angles under the URDF's root link: "
                 "q_base = (x, y, z [m], yaw, pitch, roll [rad]), "
                 "R = Rz(yaw) Ry(pitch) Rx(roll)",

@@ -154,7 +154,8 @@ def load_robot(
             an example-robot-data name (``"solo12"``, ``"talos"``, ...), or a `RobotSpec`
             (then the keyword arguments must stay at their defaults).
         base: ``"fixed"`` (the URDF as written), ``"planar"`` (x, z, pitch),
-            ``"planar_xz"`` (x, z) or ``"floating"`` (x, y, z, ZYX Euler angles). The base
+            ``"planar_xz"`` (x, z), ``"vertical"`` (z: a rail) or ``"floating"`` (x, y,
+            z, ZYX Euler angles). The base
             joint is named ``root_joint``. example-robot-data's quaternion free-flyer is
             replaced by the chosen base.
 
@@ -303,6 +304,8 @@ def _base_joint(base: str) -> pin.JointModel | None:
         joint = pin.JointModelComposite(pin.JointModelPX())
         joint.addJoint(pin.JointModelPZ())
         return joint
+    if base == "vertical":
+        return pin.JointModelPZ()
     if base == "floating":
         joint = pin.JointModelComposite(pin.JointModelTranslation())
         joint.addJoint(pin.JointModelSphericalZYX())

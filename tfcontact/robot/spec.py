@@ -18,18 +18,21 @@ from tfcontact.errors import InvalidInput
 #: * ``"fixed"``: the root link is welded to the world (the URDF as written).
 #: * ``"planar"``: x, z, pitch: prismatic X, prismatic Z, revolute Y (nq = nv = 3).
 #: * ``"planar_xz"``: x, z: prismatic X, prismatic Z, no rotation (nq = nv = 2).
+#: * ``"vertical"``: z: one prismatic Z joint (nq = nv = 1), a vertical rail (a leg test
+#:   bench); the robot's own joints move in the x-z plane.
 #: * ``"floating"``: translation then ZYX Euler angles (nq = nv = 6),
 #:   q_base = (x, y, z, yaw, pitch, roll), R = Rz(yaw) Ry(pitch) Rx(roll).
-BASES: tuple[str, ...] = ("fixed", "planar", "planar_xz", "floating")
+BASES: tuple[str, ...] = ("fixed", "planar", "planar_xz", "vertical", "floating")
 
 #: Bases whose motion stays in the world x-z plane (one tangent direction per contact).
-PLANAR_BASES: tuple[str, ...] = ("planar", "planar_xz")
+PLANAR_BASES: tuple[str, ...] = ("planar", "planar_xz", "vertical")
 
 #: The base joint's coordinates of each base, in order, with their units.
 BASE_COORDINATES: dict[str, tuple[tuple[str, str], ...]] = {
     "fixed": (),
     "planar": (("x", "m"), ("z", "m"), ("pitch", "rad")),
     "planar_xz": (("x", "m"), ("z", "m")),
+    "vertical": (("z", "m"),),
     "floating": (("x", "m"), ("y", "m"), ("z", "m"), ("yaw", "rad"), ("pitch", "rad"),
                  ("roll", "rad")),
 }

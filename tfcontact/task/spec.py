@@ -53,7 +53,8 @@ class RobotEntry:
 
     Args:
         source: as `tfcontact.robot.load_robot`'s source.
-        base: "fixed", "planar" (x, z, pitch), "planar_xz" (x, z) or "floating".
+        base: "fixed", "planar" (x, z, pitch), "planar_xz" (x, z), "vertical" (z: a
+            rail) or "floating".
         locked: joints fixed and removed, with their positions {joint: rad or m}.
     """
 
