@@ -431,8 +431,8 @@ def test_base_the_model_cannot_take(tmp_path):
     with pytest.raises(IncompatibleOptions, match=r"`wheel` \(JointModelRUBY\).*replace "
                        r"`continuous` by `revolute`"):
         load_robot(str(continuous))
-    with pytest.raises(InvalidInput, match=r"`base` must be one of fixed, planar, planar_xz, "
-                       r"floating, got 'free'"):
+    with pytest.raises(InvalidInput, match=r"`base` must be one of fixed, planar, "
+                       r"planar_xz, vertical, floating, got 'free'"):
         load_robot("robots/ball.urdf", base="free")
 
 
