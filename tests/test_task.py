@@ -476,6 +476,16 @@ def test_an_actuated_base_coordinate_is_a_generalised_force_with_a_task_effort(t
         build_task(load_task(path))
 
 
+def _terminal_rows(path: Path, q: list[float], v: list[float]) -> tuple:
+    """The task's problem and its terminal constraint's rows at the end state (q, v)."""
+    problem = build_task(load_task(path)).problem
+    tf = problem.system
+    y = np.zeros(tf.y.numel())
+    y[tf.q_index], y[tf.v_index] = q, v
+    end = ca.Function("end", [tf.y], [problem.terminal.expression])
+    return problem, np.asarray(end(y)).ravel()
+
+
 def test_an_end_height_goal_constrains_the_contact_to_end_touching_the_terrain(task_file):
     """`goals.end_height`: the plan's end gap is bounded to [0, half the resting
     threshold] (a plan hovering above the top cannot meet it), and the goal is checked."""
@@ -484,12 +494,9 @@ def test_an_end_height_goal_constrains_the_contact_to_end_touching_the_terrain(t
 
     path = _edited(task_file, "lift_offs = { toe = 1 }",
                    "lift_offs = { toe = 1 }\nend_height = { toe = 0.0 }")
-    problem = build_task(load_task(path)).problem
-    tf = problem.system
-    end = ca.Function("end", [tf.y], [problem.terminal.expression])
-    y = np.zeros(tf.y.numel())
-    y[tf.q_index] = [0.0, 0.52, 0.3]  # toe centre at 0.22 m: gap 0.2 m
-    assert float(end(y)) == pytest.approx(0.2)
+    # toe centre at 0.22 m: gap 0.2 m
+    problem, rows = _terminal_rows(path, q=[0.0, 0.52, 0.3], v=[0.0, 0.0, 0.0])
+    assert rows == pytest.approx([0.2])
     np.testing.assert_array_equal(problem.terminal.lower, [0.0])
     np.testing.assert_array_equal(problem.terminal.upper, [0.5 * RESTING_GAP])
     height = [g for g in problem.goals if isinstance(g, EndHeight)]
@@ -504,14 +511,9 @@ def test_periodic_states_end_where_they_start(task_file):
     path = _edited(task_file, "horizon = 1.0", 'horizon = 1.0\nperiodic = ["z", "v_leg"]')
     path = _edited(path, "lift_offs = { toe = 1 }",
                    "lift_offs = { toe = 1 }\nend_height = { toe = 0.0 }")
-    problem = build_task(load_task(path)).problem
-    tf = problem.system
-    end = ca.Function("end", [tf.y], [problem.terminal.expression])
-    y = np.zeros(tf.y.numel())
-    y[tf.q_index] = [0.3, 0.62, 0.3]  # x, z, leg
-    y[tf.v_index] = [1.0, -2.0, 0.5]
+    problem, rows = _terminal_rows(path, q=[0.3, 0.62, 0.3], v=[1.0, -2.0, 0.5])
     # gap 0.62 - 0.3 - 0.02 = 0.3; z - 0.32 (its start) = 0.3; v_leg - 0 = 0.5
-    np.testing.assert_allclose(np.asarray(end(y)).ravel(), [0.3, 0.3, 0.5], atol=1e-12)
+    np.testing.assert_allclose(rows, [0.3, 0.3, 0.5], atol=1e-12)
     np.testing.assert_array_equal(problem.terminal.lower, [0.0, 0.0, 0.0])
     np.testing.assert_array_equal(problem.terminal.upper[1:], [0.0, 0.0])
     _edited(path, '["z", "v_leg"]', '["z", "pitch"]')
