@@ -42,8 +42,9 @@ def _points(tf, rng: np.random.Generator, count: int) -> list[np.ndarray]:
                                           ("floating", (0.0, 0.6))])
 def test_one_solve_rhs_is_the_sum_of_the_modes(tmp_path, base, mu):
     cls = _box_cls(tmp_path, base, mu)
-    tf = time_freeze(cls, method=Inelastic())
+    tf = time_freeze(cls, method=Inelastic(dynamics=OneSolve()))
     assert tf.parameter("dynamics") == "one_solve"
+    assert time_freeze(cls, method=Inelastic()).parameter("dynamics") == "per_mode_solves"
     old = time_freeze(cls, method=Inelastic(dynamics=PerModeSolves())).pss
     pss = tf.pss
     z = ca.vertcat(pss.x, pss.u, pss.alpha)

@@ -548,8 +548,10 @@ def test_a_task_sets_the_homotopys_residual_and_asks_for_an_exact_resolve(task_f
                                      if "complementarity" in bad else "exact_resolve = true"))
 
 
-# The shipped terrain tasks, planned end to end (one attempt, the tasks' "fast" preset to
-# a residual of 1e-4): about 5 s each on a shared 2-core machine.
+# The shipped terrain tasks, planned end to end (the tasks' "fast" preset to a residual of
+# 1e-4): about 5 s each on a shared 2-core machine. Up to 3 attempts: the platform's plan
+# depends on round-off (its task file), and a restart from a perturbed guess is the
+# library's answer to that.
 @pytest.mark.parametrize("name", ["hopper-step", "hopper-platform"])
 def test_a_shipped_terrain_task_is_planned_verified_and_clear_of_the_terrain(name):
     """The solver finds the hop (no contact schedule): converged, verified, at its goal
@@ -561,7 +563,7 @@ def test_a_shipped_terrain_task_is_planned_verified_and_clear_of_the_terrain(nam
     from tfcontact.verify.collision import check_robot_collisions, terrain_obstacles
 
     setup = build_task(load_task(shipped_tasks()[name]))
-    options = dataclasses.replace(setup.options, attempts=1)
+    options = dataclasses.replace(setup.options, attempts=3)
     result = solve_contact(setup.problem, options, verbose=False, throw=False)
     assert result.task.passed, result.task.summary()
     assert result.verification.passed, result.verification.summary()

@@ -7,9 +7,9 @@ stops while they act. Entry points:
 * `from_robot(robot, ground, mu=...)`: the CLS of a `tfcontact.robot.Robot`.
 * `time_freeze(cls, method=...)`: a `ComplementarityLagrangianSystem` -> `TimeFreezingSystem`
   (`Inelastic()` Heaviside form with friction, `Elastic(stiffness)` Stewart form).
-  `Inelastic(dynamics=...)` chooses how the velocity rows are written: `OneSolve()`
-  (default, one M(q) solve), `PerModeSolves()` or `InverseDynamics()` (accelerations as
-  stage variables, no M(q)^-1; benchmarks/dynamics_forms.md).
+  `Inelastic(dynamics=...)` chooses how the velocity rows are written: `PerModeSolves()`
+  (default, one M(q) solve per mode), `OneSolve()` (one solve) or `InverseDynamics()`
+  (accelerations as stage variables, no M(q)^-1; benchmarks/dynamics_forms.md).
 * `hysteresis_system(...)`: a two-mode hysteresis -> `TimeFreezingSystem` (Stewart, Voronoi).
 * `with_speed_of_time`, `with_lagrange_cost`: the OCP layer's transformations.
 * `to_physical_time`: numerical-time solutions -> physical time with impacts as jumps.

@@ -42,12 +42,15 @@ on), so
     sum_k theta_k f_k = (theta_ODE v, M^{-1} sum_k theta_k F_k, theta_ODE)
 
 exactly: one solve with M(q) instead of one per mode (nine for four 3-D contacts). The
-`dynamics` strategy chooses the expression handed to the FESD layer: `OneSolve`
-(default), `PerModeSolves` (sum_k theta_k f_k as written, for comparison) or
+`dynamics` strategy chooses the expression handed to the FESD layer: `PerModeSolves`
+(default: sum_k theta_k f_k as written), `OneSolve` (one solve) or
 `InverseDynamics` (issues 30/31: accelerations a as auxiliary variables of every stage
 point, f = (theta_ODE v, a, theta_ODE) and M(q) a = sum_k theta_k F_k, no M^{-1} at all).
 All three are the same dynamics, so solutions agree; the derivatives differ in cost
-(benchmarks/dynamics_forms.md). `TimeFreezingSystem.modes` keeps the per-mode columns
+(benchmarks/dynamics_forms.md). The default stays the per-mode form: the measured plans
+(hopper, hopper-exact, the reduced monoped chain) follow IPOPT paths that the other forms'
+round-off changes, and with `OneSolve` those three failed their tests (a second hop at T,
+a failed re-solve). `TimeFreezingSystem.modes` keeps the per-mode columns
 either way (diagnostics, plots, tests).
 
 The Stewart form (`form="stewart"`, one contact, planar or no friction) gives each sign
@@ -127,8 +130,8 @@ class OneSolve(HeavisideDynamics):
 
 @dataclass(frozen=True)
 class PerModeSolves(HeavisideDynamics):
-    """modes @ weights as written: one M(q) solve per mode (the form before `OneSolve`;
-    kept to measure against)."""
+    """modes @ weights as written: one M(q) solve per mode (the default: the form the
+    measured plans were solved with)."""
 
     name: str = "per_mode_solves"
 
@@ -189,7 +192,7 @@ class Inelastic:
             "stewart" (one region per sign pattern of the switching functions, one
             contact with planar or no friction).
         dynamics: how the Heaviside form writes sum_k theta_k f_k (module docstring):
-            `OneSolve()` (default), `PerModeSolves()` or `InverseDynamics()`
+            `PerModeSolves()` (default), `OneSolve()` or `InverseDynamics()`
             (accelerations as auxiliary variables). The Stewart form hands every region's
             mode to FESD separately, so there is nothing to regroup there; it takes the
             explicit strategies and ignores them.
@@ -198,7 +201,7 @@ class Inelastic:
     normal_switching: str = "separate"
     gap_scale: float = 1.0
     form: str = "heaviside"
-    dynamics: HeavisideDynamics = field(default_factory=OneSolve)
+    dynamics: HeavisideDynamics = field(default_factory=PerModeSolves)
 
     def __post_init__(self) -> None:
         if self.normal_switching not in ("separate", "max"):
