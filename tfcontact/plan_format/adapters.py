@@ -207,7 +207,7 @@ def trajectory_from_result(
         directions = [(np.asarray(ground.normal),
                        ground.tangents(c.n_tangents == 1) if c.n_tangents else np.zeros((3, 0)))
                       for c in cls.contacts]
-    along_q = callable(directions)
+    directions_at = directions if callable(directions) else (lambda _q: directions)
 
     def checked(entries: Any) -> list[tuple[np.ndarray, np.ndarray]]:
         out = [(np.asarray(n, float).reshape(3), np.asarray(t, float).reshape(3, -1))
@@ -215,8 +215,6 @@ def trajectory_from_result(
         if len(out) != n_c:
             raise InvalidInput(f"`directions` has {len(out)} entries, expected {n_c}")
         return out
-
-    constant = None if along_q else checked(directions)
 
     ocp = result.ocp
     tau, y, interval = _samples(ocp)
@@ -231,11 +229,11 @@ def trajectory_from_result(
     vn_all = np.stack([np.asarray(normals(qk)).T @ vk for qk, vk in zip(q, v, strict=True)])
     vn_all = vn_all.reshape(n, n_c)
 
-    sampled = [checked(directions(qk)) for qk in q] if along_q else None
+    sampled = [checked(directions_at(qk)) for qk in q]
 
     def world(lam_n: float, lam_t: np.ndarray, i: int, k: int) -> np.ndarray:
         """Contact i's impulse or force (lam_n, lam_t) in the world frame at sample k."""
-        n_w, t_w = sampled[k][i] if along_q else constant[i]
+        n_w, t_w = sampled[k][i]
         return lam_n * n_w + (t_w @ lam_t if t_w.shape[1] else 0.0)
 
     gap = np.zeros((n, n_robot))
@@ -341,13 +339,8 @@ def terrain_directions(robot: Any, terrain: Any) -> Any:
     `trajectory_from_result` on a `tfcontact.robot.Terrain` (slopes, box edges)."""
     import casadi as ca
 
-    terms = robot.contact_terms(terrain)
-    outputs = []
-    for t in terms:
-        outputs += [ca.DM(t.world_normal) if isinstance(t.world_normal, np.ndarray)
-                    else t.world_normal,
-                    ca.DM(t.world_tangents) if isinstance(t.world_tangents, np.ndarray)
-                    else t.world_tangents]
+    terms = robot.contact_terms(terrain)  # against a Terrain: SX in q
+    outputs = [e for t in terms for e in (t.world_normal, t.world_tangents)]
     evaluate = ca.Function("directions", [robot.twin.q], outputs)
 
     def directions(q: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -99,11 +99,11 @@ def build_task(task: Task) -> TaskSetup:
             task_region(task, robot), margin=max(c.radius for c in task.contacts))
         frictions = [_terrain_friction(ground, c.frame) if c.friction is None
                      else c.friction for c in task.contacts]
-    plain = from_robot(robot, ground, mu=frictions, a_n=task.a_n,
-                       actuated=[a for a in actuated if a in joints])
+    # unactuated (f_v = -h): the controls, on joints or base coordinates, are added below
+    plain = from_robot(robot, ground, mu=frictions, a_n=task.a_n, actuated=[])
     contacts = tuple(dataclasses.replace(c, restitution=entry.restitution)
                      for c, entry in zip(plain.contacts, task.contacts, strict=True))
-    u, forces = _actuation(plain, names, actuated, joints)
+    u, forces = _actuation(robot, plain.forces, names, actuated)
     cls = dataclasses.replace(
         plain, u=u, forces=forces, contacts=contacts, q_names=tuple(names), _functions={},
         v_names=tuple(f"v_{n}" for n in names),
@@ -260,21 +260,16 @@ def _v_index(robot: Any, name: str, names: list[str]) -> int:
     return names.index(name)
 
 
-def _actuation(plain: Any, names: list[str], actuated: list[str], joints: list[str]
+def _actuation(robot: Any, unforced: ca.SX, names: list[str], actuated: list[str]
                ) -> tuple[ca.SX, ca.SX]:
-    """(u, f_v) with one control per `actuated` name, in order: a joint's force (as
-    `from_robot` made it) or a generalised force on a base coordinate, the idealised
-    actuator of TF-8's hopper, whose hip torque turns the leg angle directly."""
+    """(u, f_v = S u - h) from `unforced` = -h, one control per `actuated` name, in order:
+    a joint's force or a generalised force on a base coordinate (the idealised actuator of
+    TF-8's hopper, whose hip torque turns the leg angle directly)."""
     u = ca.SX.sym("u", len(actuated))
-    on_joints = [u[k] for k, a in enumerate(actuated) if a in joints]
-    forces = ca.substitute(plain.forces, plain.u, ca.vertcat(*on_joints)) if on_joints \
-        else plain.forces
+    selection = np.zeros((len(names), len(actuated)))
     for k, a in enumerate(actuated):
-        if a not in joints:
-            direction = np.zeros(len(names))
-            direction[names.index(a)] = 1.0
-            forces = forces + ca.DM(direction) * u[k]
-    return u, forces
+        selection[_v_index(robot, a, names), k] = 1.0
+    return u, unforced + ca.mtimes(ca.DM(selection), u)
 
 
 def _check_names(task: Task, state_names: list[str], frames: list[str]) -> None:
@@ -356,8 +351,7 @@ def _effort(task: Task, robot: Any, actuated: list[str]) -> np.ndarray:
             raise InvalidInput(f"the base coordinate `{joint}` is actuated but has no effort "
                                f"limit (a URDF gives none for the base); give one in the "
                                f"task: effort = {{ {joint} = 50.0 }}")
-        limit = float(robot.model.effortLimit[robot.model.joints[
-            robot.model.getJointId(joint)].idx_v])
+        limit = float(robot.model.effortLimit[_v_index(robot, joint, [])])
         if not (0.0 < limit < UNBOUNDED):
             raise InvalidInput(f"joint `{joint}` has no effort limit in the URDF; give one "
                                f"in the task: effort = {{ {joint} = 50.0 }}")
