@@ -12,6 +12,7 @@ from tfcontact.ocp.contact import solve_contact
 from tfcontact.ocp.goals import (
     Clearance,
     EndPosition,
+    Flight,
     LiftOffs,
     Motion,
     Moves,
@@ -54,6 +55,31 @@ def test_each_goal_measures_the_motion():
     assert not missed.passed and missed.status == "goal_missed"
     assert [c.passed for c in missed.checks] == [False, False, False]
     assert "goal missed" in missed.summary() and "GOAL MISSED" in missed.summary()
+
+
+def test_flight_needs_every_contact_up_at_once_for_the_duration():
+    """Two feet: front up over [0.2, 0.5] s, hind over [0.3, 0.7] s: together 0.2 s
+    (samples 0.3 to 0.5), although each alone is up longer; feet lifted in turn (no
+    overlap) fly 0 s."""
+    t = np.linspace(0.0, 1.0, 11)
+    front = np.array([0, 0, .05, .1, .1, .05, 0, 0, 0, 0, 0])
+    hind = np.array([0, 0, 0, .05, .1, .1, .1, .05, 0, 0, 0])
+    jump = Motion(t=t, q=np.zeros((11, 1)), gaps=np.column_stack([front, hind]),
+                  names=("x",))
+    check = check_goals([Flight((0, 1), 0.19)], jump).checks[0]
+    assert check.value == pytest.approx(0.2) and check.passed
+    assert not check_goals([Flight((0, 1), 0.25)], jump).passed
+    assert check_goals([Flight((0,), 0.3)], jump).checks[0].value == pytest.approx(0.3)
+    # 6 cm of clearance needed: the overlap shrinks to the samples 0.4 s (front .1, hind
+    # .1) alone, a stretch of zero length
+    assert check_goals([Flight((0, 1), 0.1, height=0.06)], jump).checks[0].value == 0.0
+    walk = Motion(t=t, q=np.zeros((11, 1)), gaps=np.column_stack([front, front[::-1]]),
+                  names=("x",))
+    assert check_goals([Flight((0, 1), 0.1)], walk).checks[0].value == 0.0
+    with pytest.raises(InvalidInput, match="a Flight goal needs at least one contact"):
+        Flight((), 0.1)
+    with pytest.raises(InvalidInput, match="`duration` must be a positive number"):
+        Flight((0,), 0.0)
 
 
 def test_no_motion_wins_over_a_missed_goal():

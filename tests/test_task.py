@@ -95,6 +95,7 @@ def _edited(task_file: Path, old: str, new: str) -> Path:
      r"`contacts\[0\]` has unknown keys \['radious'\]"),
     ("radius = 0.02", "radius = -0.02", r"`contacts\[toe\].radius` must be finite > 0"),
     ("friction = 0.5", "friction = -1", r"`contacts\[toe\].friction` must be finite >= 0"),
+    ("friction = 0.5", "friction = 0.5\neps_t = 0", r"`contacts\[toe\].eps_t` must be finite > 0"),
     ('base = "planar_xz"', 'base = "hovering"', r"`robot.base` must be one of fixed"),
     ("horizon = 1.0", "horizon = 0", r"`horizon` must be finite > 0"),
     ("n_intervals = 20", "n_intervals = 2.5", r"`n_intervals` must be a positive integer"),
@@ -204,6 +205,34 @@ def test_each_contact_keeps_its_own_friction():
     assert [c.mu for c in cls.contacts] == [0.3, 0.0]
     assert cls.contacts[0].tangents.shape == (5, 1) and cls.contacts[1].tangents.numel() == 0
     assert cls.control_names == ("u_hip_joint", "u_leg_joint")
+
+
+def test_each_contact_keeps_its_own_stick_speed_in_3d_friction():
+    """`eps_t` reaches the CLS per contact; the task's default (1 mm/s) is not the
+    time-freezing layer's reference value (1e-7), whose 1/eps_t derivatives made a 3-D
+    plan's first NLP fail."""
+    task = task_from_dict({
+        "name": "two feet", "horizon": 1.0, "n_intervals": 5,
+        "robot": {"source": "solo12", "base": "floating"},
+        "contacts": [{"frame": "FL_FOOT", "radius": 0.016, "friction": 0.7},
+                     {"frame": "HR_FOOT", "radius": 0.016, "friction": 0.7,
+                      "eps_t": 1e-5}],
+        "start": {"z": 0.5}})
+    contacts = build_task(task).problem.system.cls.contacts
+    assert [c.tangents.shape[1] for c in contacts] == [2, 2]
+    assert [c.eps_t for c in contacts] == [1e-3, 1e-5]
+
+
+def test_a_flight_goal_asks_every_contact_up_at_once(task_file):
+    from tfcontact.ocp.goals import Flight
+
+    path = _edited(task_file, "lift_offs = { toe = 1 }",
+                   "lift_offs = { toe = 1 }\nflight = 0.1\nflight_height = 0.02")
+    goals = build_task(load_task(path)).problem.goals
+    flight = [g for g in goals if isinstance(g, Flight)]
+    assert flight == [Flight((0,), 0.1, 0.02)]
+    with pytest.raises(InvalidInput, match=r"`goals.flight` must be finite > 0 \[s\]"):
+        load_task(_edited(path, "flight = 0.1", "flight = -0.1"))
 
 
 def test_validation_of_the_dataclasses():

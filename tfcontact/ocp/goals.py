@@ -201,6 +201,43 @@ class LiftOffs(Goal):
                          bool(rises >= self.count), GOAL_MISSED)
 
 
+@dataclass(frozen=True)
+class Flight(Goal):
+    """Contacts `contacts` are all off the ground together, each gap above `height` [m],
+    for at least `duration` [s] in one stretch: a jump's flight phase, not feet that lift
+    one after another. The stretch is measured between the first and last samples of the
+    motion in which every gap is above `height`, so it never overstates the flight."""
+
+    contacts: tuple[int, ...]
+    duration: float
+    height: float = 1e-2
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "contacts", tuple(self.contacts))
+        if not self.contacts:
+            raise InvalidInput("a Flight goal needs at least one contact")
+        _finite(self.duration, "duration", positive=True)
+        _finite(self.height, "height", positive=True)
+
+    def validate(self, names: Sequence[str], n_contacts: int) -> None:
+        for contact in self.contacts:
+            Clearance(contact, self.height).validate(names, n_contacts)
+
+    def check(self, motion: Motion) -> GoalCheck:
+        airborne = np.all(motion.gaps[:, list(self.contacts)] > self.height, axis=1)
+        longest, start = 0.0, None
+        for k, up in enumerate(airborne):
+            if up and start is None:
+                start = k
+            if up:
+                longest = max(longest, float(motion.t[k] - motion.t[start]))
+            else:
+                start = None
+        return GoalCheck("flight", f"longest time contacts {list(self.contacts)} are all "
+                         f"above {self.height:g} m [s]", longest, self.duration,
+                         bool(longest >= self.duration), GOAL_MISSED)
+
+
 @dataclass(frozen=True, eq=False)
 class EndHeight(Goal):
     """Contact `contact` ends resting on a surface at height `height` [m]: its gap at T at

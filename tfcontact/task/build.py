@@ -101,7 +101,7 @@ def build_task(task: Task) -> TaskSetup:
                      else c.friction for c in task.contacts]
     # unactuated (f_v = -h): the controls, on joints or base coordinates, are added below
     plain = from_robot(robot, ground, mu=frictions, a_n=task.a_n, actuated=[])
-    contacts = tuple(dataclasses.replace(c, restitution=entry.restitution)
+    contacts = tuple(dataclasses.replace(c, restitution=entry.restitution, eps_t=entry.eps_t)
                      for c, entry in zip(plain.contacts, task.contacts, strict=True))
     u, forces = _actuation(robot, plain.forces, names, actuated)
     cls = dataclasses.replace(
@@ -364,7 +364,7 @@ def _effort(task: Task, robot: Any, actuated: list[str]) -> np.ndarray:
 
 
 def _goals(task: Task, robot: Any, cls: Any) -> tuple:
-    from tfcontact.ocp.goals import EndHeight, EndPosition, LiftOffs, Moves, Progress
+    from tfcontact.ocp.goals import EndHeight, EndPosition, Flight, LiftOffs, Moves, Progress
 
     goals: list = [EndPosition(k, v, task.goals.tolerance) for k, v in task.goals.end.items()]
     goals += [Progress(k, v) for k, v in task.goals.progress.items()]
@@ -377,6 +377,9 @@ def _goals(task: Task, robot: Any, cls: Any) -> tuple:
                              [robot.twin.frame_position(frame)[2] - contact.radius])
         goals.append(EndHeight(frames.index(frame), height, task.goals.height_tolerance,
                                lowest, touch=RESTING_GAP))
+    if task.goals.flight is not None:
+        goals.append(Flight(tuple(range(len(frames))), task.goals.flight,
+                            task.goals.flight_height))
     if task.goals.moves:
         goals.append(Moves())
     return tuple(goals)

@@ -71,7 +71,8 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "guess", "a_n", "gap_scale", "exact_resolve",
         "complementarity_tolerance", "periodic"}
 _ROBOT = {"source", "base", "locked"}
-_CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain"}
+_CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
+            "eps_t"}
 _TERRAIN = {"height", "normal"}
 _PRIMITIVE_TERRAIN = {"primitives", "smoothing", "region"}
 _PRIMITIVES: dict[str, tuple[type, set[str], tuple[str, ...]]] = {
@@ -80,7 +81,7 @@ _PRIMITIVES: dict[str, tuple[type, set[str], tuple[str, ...]]] = {
     "hole": (Hole, {"kind", "x", "y", "rounding", "floor", "friction"}, ("x",)),
 }
 _GOALS = {"end", "tolerance", "progress", "lift_offs", "lift_height", "moves", "end_height",
-          "height_tolerance"}
+          "height_tolerance", "flight", "flight_height"}
 _COSTS = {"tracking", "terminal", "control"}
 
 

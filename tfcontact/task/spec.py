@@ -90,6 +90,12 @@ class ContactEntry:
             K = `no_slip_gain`): a foot that steps rather than skates.
         no_slip_gain: K [m/s^2]: the tangential speed allowed grows as sqrt(K gap) in
             flight (1 m/s at 1 cm for the default 100).
+        eps_t: 3-D friction's stick speed [m/s] (`tfcontact.timefreezing.Contact.eps_t`;
+            used where the contact has two tangents, e.g. a floating base): stick is a
+            sliding mode on ||v_t|| = eps_t, so a standing foot creeps at most this fast,
+            and the friction terms' derivatives grow as 1/eps_t. The default 1 mm/s
+            keeps them bounded; the reference value 1e-7 made a solo12 jump's first NLP
+            fail in IPOPT's restoration phase (benchmarks/legged.md).
     """
 
     frame: str
@@ -98,6 +104,7 @@ class ContactEntry:
     restitution: float = 0.0
     no_slip: bool = False
     no_slip_gain: float = 100.0
+    eps_t: float = 1e-3
 
     def __post_init__(self) -> None:
         if not isinstance(self.frame, str) or not self.frame:
@@ -117,6 +124,8 @@ class ContactEntry:
                                f"{self.no_slip!r}")
         object.__setattr__(self, "no_slip_gain", finite(
             self.no_slip_gain, f"{where}.no_slip_gain", low=0.0, strict=True, unit="m/s^2"))
+        object.__setattr__(self, "eps_t", finite(self.eps_t, f"{where}.eps_t", low=0.0,
+                                                 strict=True, unit="m/s"))
 
 
 @dataclass(frozen=True)
@@ -226,6 +235,10 @@ class Goals:
             `height_tolerance` of the height (a foot on a step, not on the ground before
             it or against its face).
         height_tolerance: of the end heights [m].
+        flight: a duration [s] for which every contact must be off the ground at once
+            (each gap above `flight_height`): a jump, not feet lifted in turn; None: no
+            such goal.
+        flight_height: [m].
     """
 
     end: Mapping[str, float] = field(default_factory=dict)
@@ -236,6 +249,8 @@ class Goals:
     moves: bool = True
     end_height: Mapping[str, float] = field(default_factory=dict)
     height_tolerance: float = 0.01
+    flight: float | None = None
+    flight_height: float = 0.01
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "end", _frozen(
@@ -259,6 +274,11 @@ class Goals:
              _names(self.end_height, "goals.end_height").items()}))
         object.__setattr__(self, "height_tolerance", finite(
             self.height_tolerance, "goals.height_tolerance", low=0.0, strict=True, unit="m"))
+        if self.flight is not None:
+            object.__setattr__(self, "flight", finite(self.flight, "goals.flight", low=0.0,
+                                                      strict=True, unit="s"))
+        object.__setattr__(self, "flight_height", finite(
+            self.flight_height, "goals.flight_height", low=0.0, strict=True, unit="m"))
 
 
 @dataclass(frozen=True)
