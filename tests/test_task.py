@@ -235,6 +235,38 @@ def test_a_flight_goal_asks_every_contact_up_at_once(task_file):
         load_task(_edited(path, "flight = 0.1", "flight = -0.1"))
 
 
+def test_a_task_sets_the_finite_elements_per_interval(task_file):
+    path = _edited(task_file, "n_intervals = 20", "n_intervals = 20\nfinite_elements = 2")
+    assert build_task(load_task(path)).options.n_finite_elements == 2
+    assert build_task(load_task(task_file)).options.n_finite_elements != 1
+    with pytest.raises(InvalidInput, match="`finite_elements` must be a positive integer"):
+        load_task(_edited(path, "finite_elements = 2", "finite_elements = 0"))
+
+
+def test_the_quadruped_jump_task_builds_solo12_with_four_3d_feet():
+    """`quadruped-jump`: solo12 on a floating base (6 + 8 coordinates with HAA locked),
+    four feet each with two tangents and the task's stick speed, standing on the ground at
+    the start (Pinocchio's foot heights), a flight goal over all four."""
+    import pinocchio as pin
+
+    from tfcontact.ocp.goals import Flight
+
+    setup = build_task(load_task(shipped_tasks()["quadruped-jump"]))
+    cls = setup.problem.system.cls
+    assert cls.q_names[:6] == ("x", "y", "z", "yaw", "pitch", "roll") and len(cls.q_names) == 14
+    assert [c.tangents.shape[1] for c in cls.contacts] == [2, 2, 2, 2]
+    assert {c.eps_t for c in cls.contacts} == {1e-3} and {c.mu for c in cls.contacts} == {0.7}
+    model, data = setup.robot.model, setup.robot.data
+    pin.framesForwardKinematics(model, data, setup.problem.q0)
+    for contact in cls.contacts:
+        foot = data.oMf[model.getFrameId(contact.name)].translation[2]
+        assert foot - 0.016 == pytest.approx(0.0, abs=1e-6)
+    np.testing.assert_allclose(np.asarray(cls.function("gaps")(setup.problem.q0)).ravel(),
+                               0.0, atol=1e-6)
+    assert Flight((0, 1, 2, 3), 0.1, 0.01) in setup.problem.goals
+    assert setup.options.n_finite_elements == 2
+
+
 def test_validation_of_the_dataclasses():
     with pytest.raises(InvalidInput, match="restitution` must lie in"):
         ContactEntry("foot", 0.02, restitution=1.5)

@@ -451,7 +451,7 @@ def test_figures_are_written(tmp_path):
     paths = plot_trajectory(hop_trajectory(), tmp_path / "figs")
     names = sorted(p.name for p in paths)
     expected = sorted(f"{n}.{e}" for n in ("states", "clock", "contacts", "homotopy", "path",
-                                           "force_shin")
+                                           "contact_diagram", "force_shin")
                       for e in ("png", "svg"))
     assert names == expected
     for p in paths:
@@ -464,8 +464,9 @@ def test_figures_are_written(tmp_path):
 
 def test_figures_without_history(tmp_path):
     paths = plot_trajectory(_small(), tmp_path, formats=("png",))
-    assert sorted(p.name for p in paths) == ["clock.png", "contacts.png", "force_foot.png",
-                                             "path.png", "states.png"]
+    assert sorted(p.name for p in paths) == ["clock.png", "contact_diagram.png",
+                                             "contacts.png", "force_foot.png", "path.png",
+                                             "states.png"]
     with pytest.raises(InvalidInput, match="`formats` must be a non-empty subset"):
         plot_trajectory(_small(), tmp_path, formats=("jpg",))
 

@@ -137,6 +137,37 @@ def test_force_figure_shows_the_impulse_at_its_time():
         pytest.approx([0.0])
 
 
+# ------------------------------------------------------------- contact diagram
+
+
+def test_stance_intervals_of_two_feet_in_turn():
+    """Front foot down over [0, 0.2] and [0.6, 0.8] s, hind foot over [0.3, 0.5] and at
+    1 s alone (a touch seen at one sample); 1 mm of gap still counts as touching."""
+    from tfcontact.errors import InvalidInput
+    from tfcontact.plan_format import stance_intervals
+
+    t = np.linspace(0.0, 1.0, 11)
+    front = np.array([0, 1e-3, 0, .02, .05, .02, 0, 0, 0, .01, .02])
+    hind = np.array([.02, .02, .03, 0, 0, 0, .01, .02, .03, .02, 0])
+    front_down, hind_down = stance_intervals(t, np.column_stack([front, hind]))
+    np.testing.assert_allclose(front_down, [(0.0, 0.2), (0.6, 0.8)])
+    np.testing.assert_allclose(hind_down, [(0.3, 0.5), (1.0, 1.0)])
+    assert stance_intervals(t, np.full((11, 1), 0.1)) == ((),)
+    with pytest.raises(InvalidInput, match="`touch` must be a finite gap >= 0"):
+        stance_intervals(t, front, touch=-1.0)
+
+
+def test_contact_diagram_shows_the_hops_stance():
+    """The hop takes off at t = 0, stands in 0.4 < t < 0.6 and lands at T = 1: three bars,
+    the instants drawn as slivers."""
+    hop = project_hop_trajectory()
+    ax = trajectory_figures(hop)["contact_diagram"].axes[0]
+    (bars,) = ax.collections
+    spans = [(p.vertices[:, 0].min(), p.vertices[:, 0].max()) for p in bars.get_paths()]
+    np.testing.assert_allclose(spans, [(0.0, 0.002), (0.4, 0.6), (1.0, 1.002)], atol=1e-9)
+    assert [label.get_text() for label in ax.get_yticklabels()] == ["foot"]
+
+
 # ----------------------------------------------------------------------- path
 
 

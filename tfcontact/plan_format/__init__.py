@@ -24,16 +24,19 @@ from tfcontact.plan_format.adapters import (
 )
 from tfcontact.plan_format.trajectory import (
     FORMAT_VERSION,
+    STANCE_GAP,
     PhysicalSamples,
     Trajectory,
     frozen_intervals,
     load_trajectory,
     physical_time,
     save_trajectory,
+    stance_intervals,
 )
 
 __all__ = [
     "FORMAT_VERSION",
+    "STANCE_GAP",
     "CheckTolerances",
     "PhysicalSamples",
     "PlanCheck",
@@ -46,6 +49,7 @@ __all__ = [
     "physical_time",
     "plan_summary",
     "save_trajectory",
+    "stance_intervals",
     "solver_record",
     "terrain_directions",
     "trajectory_from_polished",

@@ -812,3 +812,33 @@ def _check_digests(meta: dict[str, Any], arrays: dict[str, np.ndarray], npz_path
         raise TrajectoryFileError(
             f"{str(json_path)!r} was edited or damaged: its content does not match its "
             f"`sidecar_sha256`; {RESTORE}")
+
+
+STANCE_GAP = 1e-3
+"""[m] the largest gap at which a contact counts as touching in a contact diagram (as
+`tfcontact.ocp.goals.LiftOffs.touch`)."""
+
+
+def stance_intervals(t: np.ndarray, gaps: np.ndarray, touch: float = STANCE_GAP
+                     ) -> tuple[tuple[tuple[float, float], ...], ...]:
+    """Which contact touches when: per contact (a column of `gaps`), the physical time
+    intervals [start, end] over which its gap stays at or below `touch` [m], from samples
+    at physical times `t` (non-decreasing, e.g. `PhysicalSamples.t`). A touch seen at one
+    sample alone (an impact and lift-off in one frozen piece) is an interval of length 0.
+    """
+    t = np.asarray(t, dtype=float).reshape(-1)
+    gaps = np.asarray(gaps, dtype=float).reshape(t.size, -1)
+    if not (isinstance(touch, int | float) and touch >= 0 and np.isfinite(touch)):
+        raise InvalidInput(f"`touch` must be a finite gap >= 0 [m], got {touch!r}")
+    schedule = []
+    for down in (gaps <= touch).T:
+        intervals, start = [], None
+        for k, closed in enumerate(down):
+            if closed and start is None:
+                start = k
+            if start is not None and (not closed or k == down.size - 1):
+                end = k if closed else k - 1
+                intervals.append((float(t[start]), float(t[end])))
+                start = None
+        schedule.append(tuple(intervals))
+    return tuple(schedule)

@@ -181,6 +181,8 @@ def build_task(task: Task) -> TaskSetup:
     if task.complementarity_tolerance is not None:
         options = dataclasses.replace(options, homotopy=dataclasses.replace(
             options.homotopy, tolerance=task.complementarity_tolerance))
+    if task.finite_elements is not None:
+        options = dataclasses.replace(options, n_finite_elements=task.finite_elements)
     scene = {"terrain": task.terrain.to_dict()}
     return TaskSetup(task, robot, problem, options, scene, ground)
 

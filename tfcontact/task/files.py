@@ -69,7 +69,7 @@ SHIPPED = Path(__file__).resolve().parent / "shipped"
 _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "start",
         "actuated", "effort", "bounds", "terrain", "waypoints", "goals", "costs", "solver",
         "guess", "a_n", "gap_scale", "exact_resolve",
-        "complementarity_tolerance", "periodic"}
+        "complementarity_tolerance", "finite_elements", "periodic"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "eps_t"}
@@ -154,6 +154,7 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         a_n=top.get("a_n", 100.0), gap_scale=top.get("gap_scale", 30.0),
         exact_resolve=top.get("exact_resolve", False),
         complementarity_tolerance=top.get("complementarity_tolerance"),
+        finite_elements=top.get("finite_elements"),
         periodic=_listed(top.get("periodic", ()), "periodic"),
     )
 

@@ -342,6 +342,8 @@ class Task:
             (`Homotopy.tolerance`; default: the preset's). A plan whose relaxed contacts
             still act a millimetre above the surface fails its exact-impact replay; a
             smaller residual costs more NLPs.
+        finite_elements: FESD's finite elements per control interval (default: the
+            preset's), the resolution at which lift-offs and touch-downs are located.
         exact_resolve: after the discovery, re-solve the plan exactly along the contact
             sequence it found (`tfcontact.ocp.polish`: no relaxation, impacts at the found
             times; one planar frictional contact), so that the written plan is the exact
@@ -370,6 +372,7 @@ class Task:
     gap_scale: float = 30.0
     periodic: tuple[str, ...] = ()
     complementarity_tolerance: float | None = None
+    finite_elements: int | None = None
     exact_resolve: bool = False
     description: str = ""
 
@@ -441,6 +444,9 @@ class Task:
             object.__setattr__(self, "complementarity_tolerance", finite(
                 self.complementarity_tolerance, "complementarity_tolerance", low=0.0,
                 strict=True))
+        if self.finite_elements is not None:
+            object.__setattr__(self, "finite_elements",
+                               positive_int(self.finite_elements, "finite_elements"))
         if not isinstance(self.exact_resolve, bool):
             raise InvalidInput(f"`exact_resolve` must be true or false, got "
                                f"{self.exact_resolve!r}")

@@ -19,7 +19,13 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from tfcontact.errors import InvalidInput, TfcontactError
-from tfcontact.plan_format.trajectory import PhysicalSamples, Trajectory, physical_time
+from tfcontact.plan_format.trajectory import (
+    STANCE_GAP,
+    PhysicalSamples,
+    Trajectory,
+    physical_time,
+    stance_intervals,
+)
 from tfcontact.robot import BASE_COORDINATES, Terrain
 from tfcontact.viz.labels import Labels, trajectory_labels
 from tfcontact.viz.terrain_view import (
@@ -52,6 +58,8 @@ def plot_trajectory(
       each curve named with its unit.
     * `clock`: the clock t(tau) with frozen pieces shaded, and the speed of time s(tau).
     * `contacts`: gaps [m] and normal velocities [m/s] against tau and against t.
+    * `contact_diagram`: which contact touches when (gap <= 1 mm, `stance_intervals`),
+      one row per contact against physical time: the gait.
     * `path`: the contact spheres' centres (and a planar or floating base's x, z) in the
       x-z plane over a section of the scene's terrain (flat ground, slopes, steps,
       holes); the contacts need the robot (`robot`, or rebuilt from `traj.robot`).
@@ -112,6 +120,7 @@ def trajectory_figures(traj: Trajectory, *, rate_tol: float | None = None,
         "states": _states(traj, phys, labels),
         "clock": _clock(traj, phys),
         "contacts": _contacts(traj, phys, labels),
+        "contact_diagram": _contact_diagram(phys, labels),
         "path": _path(traj, phys, labels, terrain, positions),
     }
     normals, mu = _surface(traj, terrain, positions)
@@ -267,6 +276,26 @@ def _contacts(traj: Trajectory, phys: PhysicalSamples, labels: Labels):
     axes[0, 1].set_title("physical time (frozen pieces dropped)")
     axes[-1, 0].set_xlabel(r"$\tau$ [s]")
     axes[-1, 1].set_xlabel("t [s]")
+    return fig
+
+
+def _contact_diagram(phys: PhysicalSamples, labels: Labels):
+    schedule = stance_intervals(phys.t, phys.gap)
+    n = len(schedule)
+    fig, axes = _new(1, 1, height=max(1.2, 0.45 * n + 0.6))
+    ax = axes[0, 0]
+    span = float(phys.t[-1] - phys.t[0]) if phys.t.size else 1.0
+    for row, intervals in enumerate(schedule):
+        # a touch at one instant (an impact and lift-off together) still shows as a sliver
+        bars = [(a, max(b - a, 2e-3 * span)) for a, b in intervals]
+        ax.broken_barh(bars, (n - 1 - row - 0.35, 0.7), color=f"C{row % 10}")
+    ax.set_yticks(range(n), list(reversed(labels.contacts)), fontsize="small")
+    ax.set_ylim(-0.6, n - 0.4)
+    if phys.t.size:
+        ax.set_xlim(float(phys.t[0]), float(phys.t[-1]))
+    ax.set_xlabel("t [s]")
+    ax.set_title(f"contact diagram: bars where a contact touches (gap <= "
+                 f"{1e3 * STANCE_GAP:g} mm)")
     return fig
 
 
