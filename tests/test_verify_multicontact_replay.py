@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from two_contact_box import pushed_box_problem, solved_plan
 
-from tfcontact.errors import IncompatibleOptions, InvalidInput, SolveFailed
+from tfcontact.errors import IncompatibleOptions, InvalidInput
 from tfcontact.verify import (
     AutoReplay,
     ExactReplay,
@@ -79,13 +79,16 @@ def test_a_plan_with_scaled_controls_fails_the_multicontact_replay(pushed_box):
 
 
 def test_auto_replay_falls_back_to_fesd_when_the_multicontact_simulation_stops(pushed_box):
-    """A multi-contact simulation that stops with a status (here its evaluation budget) is
-    an error of `MultiContactReplay`; `AutoReplay` says which status and why and replays
-    with its FESD fallback, keeping the multi-contact local defects (inf: stopped too)."""
+    """A multi-contact simulation that stops with a status (here its evaluation budget)
+    fails `MultiContactReplay`'s verification, the status and where it stopped in the
+    notes; `AutoReplay` says which status and why and replays with its FESD fallback,
+    keeping the multi-contact local defects (inf: stopped too)."""
     starved = MultiContactReplay(simulation=MultiContactOptions(max_rhs_evaluations=20))
-    with pytest.raises(SolveFailed, match=r"multi-contact simulation stopped "
-                                          r"\(max_rhs_evaluations\): stopped after 20"):
-        check_time_freezing_plan(pushed_box, VerifyOptions(replay=starved))
+    stopped = check_time_freezing_plan(pushed_box, VerifyOptions(replay=starved))
+    assert not stopped.passed and stopped.end_state_deviation == np.inf
+    assert stopped.method == "event-driven multi-contact reference (stopped)"
+    assert stopped.notes[0].startswith("multi-contact simulation stopped at t = ")
+    assert "(max_rhs_evaluations): stopped after 20" in stopped.notes[0]
     auto = check_time_freezing_plan(pushed_box, VerifyOptions(replay=AutoReplay(
         fallback=FesdReplay(refinement=2), multicontact=starved)))
     assert auto.method.startswith("FESD re-simulation, 8 steps")

@@ -20,6 +20,7 @@ Each method is a strategy object of `VerifyOptions.replay`:
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
@@ -29,7 +30,6 @@ import numpy as np
 from tfcontact.errors import (
     IncompatibleOptions,
     InvalidInput,
-    SolveFailed,
     TfcontactError,
     positive_int,
 )
@@ -124,9 +124,13 @@ class MultiContactReplay(Replay):
             `start_gap_tolerance` is raised to the verification's gap tolerance (a plan's
             state may lie that far inside an obstacle).
 
+    A simulation that stops with a status (Painleve, event cap, budget) is a failed
+    replay, not an error: the deviation is inf and the notes give the status and where
+    it stopped (a failed NLP's plan may chatter at its start; `solve_contact` reports
+    such a plan as unverified instead of raising).
+
     Raises (from `run`): `IncompatibleOptions` for a contact with restitution > 0;
-    `SolveFailed` (with the `MultiContactSimulation`) when the simulation stops with a
-    status (Painleve, event cap, budget); `InvalidInput` for a start inside an obstacle.
+    `InvalidInput` for a start inside an obstacle.
     """
 
     # The simulator's defaults: a restart of a pushed box's plan 2e-8 m inside the ground
@@ -189,10 +193,14 @@ class MultiContactReplay(Replay):
     def run(self, plan: TimeFreezingPlan, gap_tolerance: float,
             notes: list[str]) -> ReplayOutcome:
         sim = self.simulate(plan, gap_tolerance)
+        defects = self.local_defects(plan, gap_tolerance)
         if not sim.success:
-            raise SolveFailed(f"multi-contact simulation stopped ({sim.status}): "
-                              f"{sim.message}", sim)
-        return self.outcome(plan, sim, self.local_defects(plan, gap_tolerance))
+            stop = sim.t[-1] if sim.t.size else 0.0
+            notes.append(f"multi-contact simulation stopped at t = {stop:.6g} s "
+                         f"({sim.status.value}): {sim.message}")
+            return ReplayOutcome(math.inf, "event-driven multi-contact reference (stopped)",
+                                 local_defects=defects)
+        return self.outcome(plan, sim, defects)
 
 
 @dataclass(frozen=True)

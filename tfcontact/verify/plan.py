@@ -141,8 +141,9 @@ def check_time_freezing_plan(plan: TimeFreezingPlan,
         options: the `VerifyOptions` (default: `VerifyOptions()`).
 
     Raises:
-        TfcontactError: `ExactReplay()` or `MultiContactReplay()` where its simulator does
-            not apply or stops.
+        TfcontactError: `ExactReplay()` where its simulator does not apply or stops,
+            `MultiContactReplay()` where it does not apply (a multi-contact simulation
+            that stops fails the end-state check, its status in the notes).
     """
     options = options if options is not None else VerifyOptions()
     system = plan.system
