@@ -1,17 +1,19 @@
 """Legged plans with several 3-D frictional contacts: size, iterations and where the time
 goes, one plan at a time in one run (issue 30, benchmarks/legged.md).
 
-    python scripts/bench_legged.py                         # quadruped-jump, eps_t 1e-7 and 1e-3
+    python scripts/bench_legged.py --pyramid    # quadruped-jump's first NLP: cone at eps_t
+                                                # 1e-7 and 1e-3, and the pyramid
     python scripts/bench_legged.py quadruped-jump --eps-t 1e-3 --nlps 0 --out benchmarks/legged.md
 
-Per task and stick speed eps_t (`ContactEntry.eps_t`, set for every contact): DoF,
+Per task, friction model (`Task.friction_model`) and, for the cone, stick speed eps_t
+(`ContactEntry.eps_t`, set for every contact): DoF,
 contacts, NLP variables, constraints, complementarity pairs and constraint-Jacobian
 nonzeros; the NLPs solved (`--nlps K` stops the homotopy after K, 0: the task's whole
 homotopy), their IPOPT iterations and statuses, milliseconds per iteration split into
 CasADi's function evaluations and the rest (IPOPT's own work, mostly MUMPS), the NLP
 build, solve and verification times (the multi-contact exact-impact replay, no FESD
-fallback), the plan's status and its goals. A cut homotopy is reported as such: its status
-says nothing about the plan.
+fallback), the plan's status and its goals. A cut homotopy is reported as such and not
+verified: its iterate is no plan.
 """
 
 from __future__ import annotations
@@ -19,56 +21,71 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime
+import math
 import platform
 import time
 from pathlib import Path
 
-COLUMNS = ("task", "eps_t [m/s]", "DoF", "contacts", "variables", "constraints",
+COLUMNS = ("task", "friction", "eps_t [m/s]", "DoF", "contacts", "variables", "constraints",
            "compl. pairs", "Jacobian nnz", "NLPs", "iterations", "IPOPT statuses",
            "ms/iter eval", "ms/iter IPOPT+MUMPS", "NLP build [s]", "solve [s]",
            "verify [s]", "status", "goals met")
 
 
-def measure(name: str, eps_t: float, nlps: int) -> dict:
-    """One task with every contact's eps_t set, solved once (module docstring)."""
+def measure(name: str, eps_t: float | None, nlps: int, friction: str | None = None) -> dict:
+    """One task, solved once (module docstring); `eps_t`, `friction`: None keeps the
+    task's own."""
     import casadi as ca
 
-    from tfcontact.ocp.contact import solve_contact
+    from tfcontact.ocp import Transcription, solve
+    from tfcontact.ocp.contact import solve_contact, transcribe
     from tfcontact.task import build_task, load_task, shipped_tasks
     from tfcontact.verify import MultiContactReplay, VerifyOptions
 
     task = load_task(shipped_tasks().get(name, name))
-    task = dataclasses.replace(task, contacts=tuple(
-        dataclasses.replace(c, eps_t=eps_t) for c in task.contacts))
+    if eps_t is not None:
+        task = dataclasses.replace(task, contacts=tuple(
+            dataclasses.replace(c, eps_t=eps_t) for c in task.contacts))
+    if friction is not None:
+        task = dataclasses.replace(task, friction_model=friction)
     setup = build_task(task)
     options = setup.options
-    homotopy = options.homotopy
-    if nlps > 0:
-        homotopy = dataclasses.replace(homotopy, max_nlps=nlps)
-    options = dataclasses.replace(options, attempts=1, homotopy=homotopy,
-                                  verify=VerifyOptions(replay=MultiContactReplay()))
     start = time.perf_counter()
-    result = solve_contact(setup.problem, options, verbose=True, throw=False)
+    if nlps > 0:  # a cut homotopy: its plan is no plan, so it is not verified
+        ocp_problem, _ = transcribe(setup.problem)
+        ocp = solve(ocp_problem, discretization=Transcription(
+            scheme=options.scheme, n_finite_elements=options.n_finite_elements,
+            method=options.method), relaxation=options.relaxation,
+            homotopy=dataclasses.replace(options.homotopy, max_nlps=nlps), nlp=options.nlp,
+            verbose=True, throw=False)
+        timings = {"build": ocp.build_time, "solve": ocp.solve_time, "verify": math.nan}
+        status, goals = f"cut after {nlps} NLPs", "-"
+    else:
+        result = solve_contact(setup.problem, dataclasses.replace(
+            options, attempts=1, verify=VerifyOptions(replay=MultiContactReplay())),
+            verbose=True, throw=False)
+        ocp, timings = result.ocp, result.timings
+        status, goals = result.status, result.task.passed
     wall = time.perf_counter() - start
-    mpcc = result.ocp.build.mpcc
-    steps = result.ocp.mpcc_result.history
+    mpcc = ocp.build.mpcc
+    steps = ocp.mpcc_result.history
     iterations = sum(s.iterations for s in steps)
     evaluation = sum(s.evaluation_seconds for s in steps)
     solving = sum(s.seconds for s in steps)
     per = max(iterations, 1)
-    cut = nlps > 0 and len(steps) >= nlps
-    return {"task": task.name, "eps_t [m/s]": f"{eps_t:g}", "DoF": setup.robot.nv,
+    return {"task": task.name, "friction": task.friction_model,
+            "eps_t [m/s]": ", ".join(sorted({f"{c.eps_t:g}" for c in task.contacts})),
+            "DoF": setup.robot.nv,
             "contacts": len(task.contacts), "variables": mpcc.w.numel(),
             "constraints": mpcc.g.numel(), "compl. pairs": mpcc.n_comp,
             "Jacobian nnz": ca.jacobian(mpcc.g, mpcc.w).nnz(), "NLPs": len(steps),
-            "iterations": iterations,
+            "iterations": " + ".join(str(s.iterations) for s in steps),
             "IPOPT statuses": ", ".join(s.ipopt_status for s in steps),
             "ms/iter eval": 1e3 * evaluation / per,
             "ms/iter IPOPT+MUMPS": 1e3 * (solving - evaluation) / per,
-            "NLP build [s]": result.timings["build"], "solve [s]": result.timings["solve"],
-            "verify [s]": result.timings["verify"],
-            "status": f"cut after {nlps} NLPs" if cut else result.status,
-            "goals met": "-" if cut else result.task.passed, "wall [s]": wall}
+            "NLP build [s]": timings["build"], "solve [s]": timings["solve"],
+            "verify [s]": timings["verify"], "status": status, "goals met": goals,
+            "wall [s]": wall}
 
 
 def table(rows: list[dict]) -> str:
@@ -85,15 +102,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("names", nargs="*", default=["quadruped-jump"],
                         help="shipped task names or task files")
     parser.add_argument("--eps-t", type=float, nargs="+", default=[1e-7, 1e-3],
-                        help="stick speeds to compare [m/s]")
+                        help="stick speeds of the cone to compare [m/s]")
+    parser.add_argument("--pyramid", action="store_true",
+                        help="also the inscribed pyramid (`friction_model = pyramid`)")
     parser.add_argument("--nlps", type=int, default=1,
                         help="NLPs of the homotopy to solve (0: all)")
     parser.add_argument("--out", type=Path, default=None, help="write the table here")
     args = parser.parse_args(argv)
     rows = []
     for name in args.names:
-        for eps_t in args.eps_t:
-            rows.append(measure(name, eps_t, args.nlps))
+        variants = [(eps_t, "cone") for eps_t in args.eps_t]
+        variants += [(None, "pyramid")] if args.pyramid else []
+        for eps_t, friction in variants:
+            rows.append(measure(name, eps_t, args.nlps, friction))
             print(table(rows[-1:]).splitlines()[-1], flush=True)
     text = (f"Measured {datetime.date.today()} on {platform.node()} "
             f"({platform.processor() or platform.machine()}), one plan at a time:\n\n"

@@ -223,6 +223,24 @@ def test_each_contact_keeps_its_own_stick_speed_in_3d_friction():
     assert [c.eps_t for c in contacts] == [1e-3, 1e-5]
 
 
+def test_a_task_chooses_the_3d_friction_model():
+    """`friction_model = "pyramid"`: two switching functions per 3-D contact (one per
+    tangent, linear in v) instead of the cone's one; a planar contact is the same."""
+    entry = {"name": "feet", "horizon": 1.0, "n_intervals": 5,
+             "robot": {"source": "solo12", "base": "floating"},
+             "contacts": [{"frame": "FL_FOOT", "radius": 0.016, "friction": 0.7}],
+             "start": {"z": 0.5}}
+    cone = build_task(task_from_dict(entry)).problem.system
+    pyramid = build_task(task_from_dict({**entry, "friction_model": "pyramid"})).problem.system
+    assert dict(cone.info)["friction"] == "smoothed_cone"
+    assert dict(pyramid.info)["friction"] == "inscribed_pyramid"
+    assert dict(pyramid.info)["alpha_names"] == ("gap_FL_FOOT", "vn_FL_FOOT", "vt1_FL_FOOT",
+                                                 "vt2_FL_FOOT")
+    assert cone.pss.switching.numel() == 3 and pyramid.pss.switching.numel() == 4
+    with pytest.raises(InvalidInput, match="`friction_model` must be one of cone, pyramid"):
+        task_from_dict({**entry, "friction_model": "box"})
+
+
 def test_a_flight_goal_asks_every_contact_up_at_once(task_file):
     from tfcontact.ocp.goals import Flight
 

@@ -30,6 +30,7 @@ from tfcontact.timefreezing import (
     Contact,
     Elastic,
     Inelastic,
+    InscribedPyramid,
     elastic_damping,
     frozen_duration,
     hysteresis_system,
@@ -289,6 +290,48 @@ def test_3d_slip_and_stick_sliding_modes():
     assert np.all(theta >= 0)
     assert theta[0] == pytest.approx(0.5, rel=1e-6)  # gamma = a_n / (a_n + g)
     np.testing.assert_allclose(ydot[3:6], 0.0, atol=1e-12)
+
+
+def test_inscribed_pyramid_slips_along_the_square_and_sticks_exactly():
+    """`InscribedPyramid`: planar friction mu / sqrt(2) along each tangent. Slip along x
+    (v_y = 0 in the sliding mode of the second tangent) brakes with mu g / sqrt(2); slip
+    along the diagonal with mu g, against the velocity; the rhs is linear in v (no eps_t)."""
+    mu = 0.4
+    tf = time_freeze(point_mass(3, mu=mu, a_n=G), method=Inelastic(friction=InscribedPyramid()))
+    assert tf.pss.switching.numel() == 4  # gap, v_n, v_x, v_y
+    assert dict(tf.info)["friction"] == "inscribed_pyramid"
+    y = np.array([0, 0, 0, 2.0, 0.0, 0.0, 0.0])  # columns: ode, ++, +-, -+, --
+    theta, ydot = sliding_weights(tf, y, [], columns=[0, 1, 2], rows=[1, 3])
+    assert np.all(theta >= 0)
+    np.testing.assert_allclose(ydot[3:5] / ydot[6], [-mu * G / math.sqrt(2), 0.0],
+                               rtol=1e-12, atol=1e-12)
+    y = np.array([0, 0, 0, 1.0, 1.0, 0.0, 0.0])
+    theta, ydot = sliding_weights(tf, y, [], columns=[0, 1], rows=[1])
+    np.testing.assert_allclose(ydot[3:5] / ydot[6], -mu * G * np.array([1, 1]) / math.sqrt(2),
+                               rtol=1e-12)
+    v = ca.vertcat(*[tf.pss.x[k] for k in (3, 4, 5)])
+    assert not ca.depends_on(ca.jacobian(tf.pss.rhs, v), v)
+    cone = time_freeze(point_mass(3, mu=mu, a_n=G))  # the smoothed cone is not linear
+    v = ca.vertcat(*[cone.pss.x[k] for k in (3, 4, 5)])
+    assert ca.depends_on(ca.jacobian(cone.pss.rhs, v), v)
+
+
+@pytest.mark.parametrize("push", [0.25, 0.35])
+def test_inscribed_pyramid_push_below_its_bound_sticks_above_slides(push):
+    """A 1 kg particle at rest on the ground pushed along x by push * m g for 1 s; with the
+    pyramid's bound mu g / sqrt(2) = 0.283 g (mu = 0.4): 0.25 g sticks with v_t = 0 (the
+    smoothed cone creeps at eps_t instead), 0.35 g slides with (0.35 - 0.283) g."""
+    mu = 0.4
+    tf = time_freeze(point_mass(3, mu=mu, a_n=G, controlled=True),
+                     method=Inelastic(friction=InscribedPyramid()))
+    # in stance the clock runs at a_n / (a_n + g) = 1/2: 2 s of numerical time
+    result, phys = sim(tf, tf.initial_state([0.0, 0.0, 0.0], [0.0, 0.0, 0.0]),
+                       u=[push * G, 0.0, 0.0], horizon=2.0, n_steps=10,
+                       n_finite_elements=2)
+    slip = max(push - mu / math.sqrt(2), 0.0) * G
+    assert phys.t[-1] == pytest.approx(1.0, abs=1e-9)
+    np.testing.assert_allclose(phys.y[-1, 3:6], [slip, 0.0, 0.0], atol=1e-7)
+    np.testing.assert_allclose(phys.y[-1, 0], slip / 2, atol=1e-7)
 
 
 def test_simultaneous_impact_of_a_flat_rod_pushes_both_ends_equally():

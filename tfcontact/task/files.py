@@ -69,7 +69,7 @@ SHIPPED = Path(__file__).resolve().parent / "shipped"
 _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "start",
         "actuated", "effort", "bounds", "terrain", "waypoints", "goals", "costs", "solver",
         "guess", "a_n", "gap_scale", "exact_resolve",
-        "complementarity_tolerance", "finite_elements", "periodic"}
+        "complementarity_tolerance", "finite_elements", "friction_model", "periodic"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "eps_t"}
@@ -155,6 +155,7 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         exact_resolve=top.get("exact_resolve", False),
         complementarity_tolerance=top.get("complementarity_tolerance"),
         finite_elements=top.get("finite_elements"),
+        friction_model=top.get("friction_model", "cone"),
         periodic=_listed(top.get("periodic", ()), "periodic"),
     )
 

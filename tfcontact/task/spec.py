@@ -21,6 +21,8 @@ from tfcontact.robot.terrain import Plane, Region, Terrain
 
 GUESSES = ("start", "reference")
 """The initial guesses a task can ask for (`Task.guess`)."""
+FRICTION_MODELS = ("cone", "pyramid")
+"""`Task.friction_model` values: `tfcontact.timefreezing.SmoothedCone`, `InscribedPyramid`."""
 
 
 def finite(value: object, where: str, *, low: float | None = None, strict: bool = False,
@@ -342,6 +344,12 @@ class Task:
             (`Homotopy.tolerance`; default: the preset's). A plan whose relaxed contacts
             still act a millimetre above the surface fails its exact-impact replay; a
             smaller residual costs more NLPs.
+        friction_model: how contacts with two tangents (a floating base's feet) rub:
+            "cone" (Coulomb's circular cone, smoothed with each contact's `eps_t`:
+            `tfcontact.timefreezing.SmoothedCone`) or "pyramid" (planar friction along
+            each tangent with mu / sqrt(2), the square inscribed in the cone:
+            `InscribedPyramid`; derivatives bounded, stick exact, slip along the square's
+            diagonals).
         finite_elements: FESD's finite elements per control interval (default: the
             preset's), the resolution at which lift-offs and touch-downs are located.
         exact_resolve: after the discovery, re-solve the plan exactly along the contact
@@ -373,6 +381,7 @@ class Task:
     periodic: tuple[str, ...] = ()
     complementarity_tolerance: float | None = None
     finite_elements: int | None = None
+    friction_model: str = "cone"
     exact_resolve: bool = False
     description: str = ""
 
@@ -444,6 +453,9 @@ class Task:
             object.__setattr__(self, "complementarity_tolerance", finite(
                 self.complementarity_tolerance, "complementarity_tolerance", low=0.0,
                 strict=True))
+        if self.friction_model not in FRICTION_MODELS:
+            raise InvalidInput(f"`friction_model` must be one of {', '.join(FRICTION_MODELS)}, "
+                               f"got {self.friction_model!r}")
         if self.finite_elements is not None:
             object.__setattr__(self, "finite_elements",
                                positive_int(self.finite_elements, "finite_elements"))

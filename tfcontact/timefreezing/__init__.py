@@ -9,7 +9,9 @@ stops while they act. Entry points:
   (`Inelastic()` Heaviside form with friction, `Elastic(stiffness)` Stewart form).
   `Inelastic(dynamics=...)` chooses how the velocity rows are written: `PerModeSolves()`
   (default, one M(q) solve per mode), `OneSolve()` (one solve) or `InverseDynamics()`
-  (accelerations as stage variables, no M(q)^-1; benchmarks/dynamics_forms.md).
+  (accelerations as stage variables, no M(q)^-1; benchmarks/dynamics_forms.md);
+  `Inelastic(friction=...)` how 3-D contacts rub: `SmoothedCone()` (default, [AUTO23])
+  or `InscribedPyramid()` (planar friction per tangent: bounded derivatives, exact stick).
 * `hysteresis_system(...)`: a two-mode hysteresis -> `TimeFreezingSystem` (Stewart, Voronoi).
 * `with_speed_of_time`, `with_lagrange_cost`: the OCP layer's transformations.
 * `to_physical_time`: numerical-time solutions -> physical time with impacts as jumps.
@@ -28,7 +30,15 @@ from tfcontact.timefreezing.elastic import (
 )
 from tfcontact.timefreezing.from_robot import from_robot
 from tfcontact.timefreezing.hysteresis import VORONOI_POINTS, hysteresis_system, push_speed
-from tfcontact.timefreezing.inelastic import Inelastic, InverseDynamics, OneSolve, PerModeSolves
+from tfcontact.timefreezing.inelastic import (
+    Inelastic,
+    InscribedPyramid,
+    InverseDynamics,
+    OneSolve,
+    PerModeSolves,
+    SmoothedCone,
+    SpatialFriction,
+)
 from tfcontact.timefreezing.physical import (
     FROZEN_RATE_TOL,
     Impact,
@@ -50,9 +60,12 @@ __all__ = [
     "Elastic",
     "Impact",
     "Inelastic",
+    "InscribedPyramid",
     "InverseDynamics",
     "OneSolve",
     "PerModeSolves",
+    "SmoothedCone",
+    "SpatialFriction",
     "PhysicalTrajectory",
     "TimeFreezingSystem",
     "elastic_damping",

@@ -72,7 +72,7 @@ import numpy as np
 
 from tfcontact.errors import IncompatibleOptions, InvalidInput
 from tfcontact.fesd.system import HeavisideSystem, StewartSystem
-from tfcontact.timefreezing.cls import ComplementarityLagrangianSystem
+from tfcontact.timefreezing.cls import ComplementarityLagrangianSystem, Contact
 from tfcontact.timefreezing.system import TimeFreezingSystem
 
 
@@ -167,6 +167,90 @@ class InverseDynamics(HeavisideDynamics):
 
 
 @dataclass(frozen=True)
+class FrictionTerms:
+    """What a `SpatialFriction` strategy adds for one contact with two tangents: its
+    switching functions and step variables (with names), and its auxiliary modes as
+    generalized forces F_k, each weighted by (1 - alpha_q)(1 - alpha_vn) * factor_k."""
+
+    switching: tuple[ca.SX, ...]
+    alphas: tuple[ca.SX, ...]
+    alpha_names: tuple[str, ...]
+    forces: tuple[ca.SX, ...]
+    factors: tuple[ca.SX, ...]
+    mode_names: tuple[str, ...]
+
+
+class SpatialFriction(ABC):
+    """How Coulomb friction of a contact with two tangents (3-D) enters the auxiliary
+    dynamics. Planar contacts (one tangent) are the same for every strategy."""
+
+    name: str = "friction"
+
+    @abstractmethod
+    def terms(self, contact: Contact, vt: ca.SX) -> FrictionTerms:
+        """The contact's friction terms; `vt` = B^T v, its tangential velocity (2,)."""
+
+
+@dataclass(frozen=True)
+class SmoothedCone(SpatialFriction):
+    """The circular cone ([AUTO23] eq. (26), module docstring): c_vt = ||v_t||_eps -
+    sqrt(2) eps_t, slip f_+ = n a_n - B mu a_n v_t/||v_t||_eps, and inside the eps_t-ball
+    f_- = n a_n + B v_t. Slip is exact Coulomb; stick is a sliding mode on ||v_t|| =
+    eps_t (the foot creeps at eps_t), and the derivatives grow as 1/eps_t. The default."""
+
+    name: str = "smoothed_cone"
+
+    def terms(self, contact: Contact, vt: ca.SX) -> FrictionTerms:
+        a_t = ca.SX.sym(f"alpha_vt_{contact.name}")
+        gain = contact.mu * contact.a_n
+        norm = smooth_norm(vt, contact.eps_t)
+        push = contact.normal * contact.a_n
+        tangents = contact.tangents
+        return FrictionTerms(
+            switching=(norm - math.sqrt(2.0) * contact.eps_t,), alphas=(a_t,),
+            alpha_names=(f"vt_{contact.name}",),
+            forces=(push - ca.mtimes(tangents, vt) * (gain / norm),
+                    push + ca.mtimes(tangents, vt)),
+            factors=(a_t, 1 - a_t),
+            mode_names=(f"aux_plus_{contact.name}", f"aux_minus_{contact.name}"))
+
+
+@dataclass(frozen=True)
+class InscribedPyramid(SpatialFriction):
+    """Planar friction along each tangent b_1, b_2 on its own, with the coefficient
+    mu / sqrt(2): the friction set is the square |lambda_tj| <= mu lambda_n / sqrt(2),
+    inscribed in Coulomb's cone (DESIGN.md 4.4's polyhedral alternative, PROBLEMS.md 0.3).
+
+    Per tangent a switching function c_vtj = b_j^T v and a step variable alpha_vtj; the
+    four modes n a_n -+ g b_1 -+ g b_2 (g = mu a_n / sqrt(2)) carry the weights of the
+    sign pairs, so that their sum is n a_n - g (2 alpha_vt1 - 1) b_1 - g (2 alpha_vt2 - 1)
+    b_2. Everything is linear in v: the derivatives stay bounded, and stick is the
+    sliding mode B^T v = 0 exactly, as in the planar case. The price: a slipping contact
+    brakes with mu / sqrt(2) along each tangent it slides along, along the diagonal of
+    the square, not against its velocity (maximal dissipation holds only for slip along a
+    diagonal, and the verification's check says so); every force is inside the true cone.
+    """
+
+    name: str = "inscribed_pyramid"
+
+    def terms(self, contact: Contact, vt: ca.SX) -> FrictionTerms:
+        name = contact.name
+        a_1, a_2 = ca.SX.sym(f"alpha_vt1_{name}"), ca.SX.sym(f"alpha_vt2_{name}")
+        gain = contact.mu * contact.a_n / math.sqrt(2.0)
+        push = contact.normal * contact.a_n
+        b_1, b_2 = contact.tangents[:, 0] * gain, contact.tangents[:, 1] * gain
+        signs = ((1, 1), (1, -1), (-1, 1), (-1, -1))  # sign of (b_1^T v, b_2^T v)
+        step = {1: (a_1, a_2), -1: (1 - a_1, 1 - a_2)}
+        return FrictionTerms(
+            switching=(vt[0], vt[1]), alphas=(a_1, a_2),
+            alpha_names=(f"vt1_{name}", f"vt2_{name}"),
+            forces=tuple(push - s1 * b_1 - s2 * b_2 for s1, s2 in signs),
+            factors=tuple(step[s1][0] * step[s2][1] for s1, s2 in signs),
+            mode_names=tuple(f"aux_{'+' if s1 > 0 else '-'}{'+' if s2 > 0 else '-'}_{name}"
+                             for s1, s2 in signs))
+
+
+@dataclass(frozen=True)
 class Inelastic:
     """Inelastic impacts (restitution 0) with Coulomb friction; Heaviside-step form.
 
@@ -196,12 +280,16 @@ class Inelastic:
             (accelerations as auxiliary variables). The Stewart form hands every region's
             mode to FESD separately, so there is nothing to regroup there; it takes the
             explicit strategies and ignores them.
+        friction: how contacts with two tangents (3-D) rub: `SmoothedCone()` (default,
+            [AUTO23]) or `InscribedPyramid()` (planar friction per tangent, bounded
+            derivatives, exact stick). Planar contacts are the same for both.
     """
 
     normal_switching: str = "separate"
     gap_scale: float = 1.0
     form: str = "heaviside"
     dynamics: HeavisideDynamics = field(default_factory=PerModeSolves)
+    friction: SpatialFriction = field(default_factory=SmoothedCone)
 
     def __post_init__(self) -> None:
         if self.normal_switching not in ("separate", "max"):
@@ -215,6 +303,10 @@ class Inelastic:
         if not isinstance(self.dynamics, HeavisideDynamics):
             raise InvalidInput("`dynamics` must be a `HeavisideDynamics` strategy such as "
                                f"`OneSolve()`, got {self.dynamics!r}")
+        if not isinstance(self.friction, SpatialFriction):
+            raise InvalidInput("`friction` must be a `SpatialFriction` strategy: "
+                               f"`SmoothedCone()` or `InscribedPyramid()`, got "
+                               f"{self.friction!r}")
 
     def build(self, cls: ComplementarityLagrangianSystem) -> TimeFreezingSystem:
         """The time-freezing PSS of `cls` (module docstring)."""
@@ -267,26 +359,26 @@ class Inelastic:
                 aux_weights.append(in_q)
                 aux_names.append(f"aux_n_{name}")
                 continue
-            a_t = ca.SX.sym(f"alpha_vt_{name}")
-            alphas.append(a_t)
-            alpha_names.append(f"vt_{name}")
-            tangents = contact.tangents
             vt = cls.tangential_velocity(i)
-            gain = contact.mu * contact.a_n
             if contact.n_tangents == 1:
-                switching.append(vt)
-                plus = normal * contact.a_n - tangents * gain
-                minus = normal * contact.a_n + tangents * gain
+                a_t = ca.SX.sym(f"alpha_vt_{name}")
+                gain = contact.mu * contact.a_n
+                friction = FrictionTerms(
+                    switching=(vt,), alphas=(a_t,), alpha_names=(f"vt_{name}",),
+                    forces=(normal * contact.a_n - contact.tangents * gain,
+                            normal * contact.a_n + contact.tangents * gain),
+                    factors=(a_t, 1 - a_t),
+                    mode_names=(f"aux_plus_{name}", f"aux_minus_{name}"))
             else:
-                norm = smooth_norm(vt, contact.eps_t)
-                switching.append(norm - math.sqrt(2.0) * contact.eps_t)
-                plus = normal * contact.a_n - ca.mtimes(tangents, vt) * (gain / norm)
-                minus = normal * contact.a_n + ca.mtimes(tangents, vt)
-            forces += [plus, minus]
-            aux_modes += [ca.vertcat(zeros_q, cls.solve_mass(plus), 0),
-                          ca.vertcat(zeros_q, cls.solve_mass(minus), 0)]
-            aux_weights += [in_q * a_t, in_q * (1 - a_t)]
-            aux_names += [f"aux_plus_{name}", f"aux_minus_{name}"]
+                friction = self.friction.terms(contact, vt)
+            switching += friction.switching
+            alphas += friction.alphas
+            alpha_names += friction.alpha_names
+            forces += friction.forces
+            aux_modes += [ca.vertcat(zeros_q, cls.solve_mass(force), 0)
+                          for force in friction.forces]
+            aux_weights += [in_q * factor for factor in friction.factors]
+            aux_names += friction.mode_names
         weights = ca.vertcat(theta_ode, *aux_weights)
         modes = ca.horzcat(*modes, *aux_modes)
         region_names += aux_names
@@ -305,7 +397,7 @@ class Inelastic:
             info=(("form", "heaviside"), ("dynamics", self.dynamics.name),
                   ("alpha_names", tuple(alpha_names)),
                   ("normal_switching", self.normal_switching),
-                  ("gap_scale", self.gap_scale),
+                  ("gap_scale", self.gap_scale), ("friction", self.friction.name),
                   ("a_n", tuple(c.a_n for c in cls.contacts)),
                   ("eps_t", tuple(c.eps_t for c in cls.contacts))),
         )
