@@ -74,7 +74,8 @@ def measure(name: str, eps_t: float | None, nlps: int, friction: str | None = No
     solving = sum(s.seconds for s in steps)
     per = max(iterations, 1)
     return {"task": task.name, "friction": task.friction_model,
-            "eps_t [m/s]": ", ".join(sorted({f"{c.eps_t:g}" for c in task.contacts})),
+            "eps_t [m/s]": "- (unused)" if task.friction_model == "pyramid" else
+            ", ".join(sorted({f"{c.eps_t:g}" for c in task.contacts})),
             "DoF": setup.robot.nv,
             "contacts": len(task.contacts), "variables": mpcc.w.numel(),
             "constraints": mpcc.g.numel(), "compl. pairs": mpcc.n_comp,

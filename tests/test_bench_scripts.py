@@ -64,3 +64,28 @@ def test_task_bench_tabulates_one_row_per_task_with_every_column(load_script):
     assert lines[0].count("|") == len(bench.COLUMNS) + 1
     assert "| 4.36 |" in lines[2] and "| True |" in lines[3]
     assert lines[2].split(" | ")[0] == "| <task>"
+
+
+def test_legged_bench_tabulates_every_column(load_script):
+    bench = load_script("bench_legged")
+    row = {column: f"<{column}>" for column in bench.COLUMNS}
+    row.update({"ms/iter eval": 55.041, "goals met": False})
+    lines = bench.table([row]).splitlines()
+    assert lines[0].count("|") == len(bench.COLUMNS) + 1
+    assert "| 55.04 |" in lines[2] and lines[2].endswith("| False |")
+
+
+def test_linear_solver_bench_changes_only_the_linear_algebra(load_script):
+    """Each solver variant keeps the plan's own IPOPT settings (its options merged)."""
+    from tfcontact.scenes.particle_ocps import box_circle_options
+
+    bench = load_script("bench_linear_solvers")
+    base = box_circle_options()
+    for name, change in bench.SOLVERS.items():
+        nlp = bench.with_solver(base, change).nlp
+        assert nlp.tol == base.nlp.tol and nlp.max_iter == base.nlp.max_iter, name
+        assert {k: v for k, v in nlp.options.items() if k in base.nlp.options} == \
+            base.nlp.options, name
+    assert bench.with_solver(base, bench.SOLVERS["spral"]).nlp.linear_solver == "spral"
+    assert bench.with_solver(base, bench.SOLVERS["mumps METIS"]).nlp.options[
+        "mumps_pivot_order"] == 5
