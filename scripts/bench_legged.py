@@ -20,11 +20,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime
 import math
-import platform
+import sys
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the sibling bench_tasks
+from bench_tasks import markdown_table, report  # noqa: E402
 
 COLUMNS = ("task", "friction", "eps_t [m/s]", "DoF", "contacts", "variables", "constraints",
            "compl. pairs", "Jacobian nnz", "NLPs", "iterations", "IPOPT statuses",
@@ -90,12 +92,7 @@ def measure(name: str, eps_t: float | None, nlps: int, friction: str | None = No
 
 
 def table(rows: list[dict]) -> str:
-    def cell(value: object) -> str:
-        return f"{value:.2f}" if isinstance(value, float) else str(value)
-
-    lines = ["| " + " | ".join(COLUMNS) + " |", "|" + " --- |" * len(COLUMNS)]
-    lines += ["| " + " | ".join(cell(row[c]) for c in COLUMNS) + " |" for row in rows]
-    return "\n".join(lines)
+    return markdown_table(COLUMNS, rows)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -117,12 +114,7 @@ def main(argv: list[str] | None = None) -> int:
         for eps_t, friction in variants:
             rows.append(measure(name, eps_t, args.nlps, friction))
             print(table(rows[-1:]).splitlines()[-1], flush=True)
-    text = (f"Measured {datetime.date.today()} on {platform.node()} "
-            f"({platform.processor() or platform.machine()}), one plan at a time:\n\n"
-            + table(rows) + "\n")
-    print(text)
-    if args.out is not None:
-        args.out.write_text(text)
+    report(table(rows), "plan", args.out)
     return 0
 
 

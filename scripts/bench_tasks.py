@@ -55,13 +55,28 @@ def measure(name: str) -> dict:
             "bodies clear": "flat ground" if clear is None else clear}
 
 
-def table(rows: list[dict]) -> str:
+def markdown_table(columns: tuple[str, ...], rows: list[dict]) -> str:
+    """A markdown table of `rows` (dicts by column), floats to 0.01 (bench_legged's too)."""
     def cell(value: object) -> str:
         return f"{value:.2f}" if isinstance(value, float) else str(value)
 
-    lines = ["| " + " | ".join(COLUMNS) + " |", "|" + " --- |" * len(COLUMNS)]
-    lines += ["| " + " | ".join(cell(row[c]) for c in COLUMNS) + " |" for row in rows]
+    lines = ["| " + " | ".join(columns) + " |", "|" + " --- |" * len(columns)]
+    lines += ["| " + " | ".join(cell(row[c]) for c in columns) + " |" for row in rows]
     return "\n".join(lines)
+
+
+def report(table: str, what: str, out: Path | None) -> None:
+    """Print the measured `table` under the date and the machine, and write it to `out`."""
+    text = (f"Measured {datetime.date.today()} on {platform.node()} "
+            f"({platform.processor() or platform.machine()}), one {what} at a time:\n\n"
+            + table + "\n")
+    print(text)
+    if out is not None:
+        out.write_text(text)
+
+
+def table(rows: list[dict]) -> str:
+    return markdown_table(COLUMNS, rows)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -76,12 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in args.names or sorted(shipped_tasks()):
         rows.append(measure(name))
         print(table(rows[-1:]).splitlines()[-1], flush=True)
-    text = (f"Measured {datetime.date.today()} on {platform.node()} "
-            f"({platform.processor() or platform.machine()}), one task at a time:\n\n"
-            + table(rows) + "\n")
-    print(text)
-    if args.out is not None:
-        args.out.write_text(text)
+    report(table(rows), "task", args.out)
     return 0
 
 
