@@ -299,6 +299,8 @@ def test_inscribed_pyramid_slips_along_the_square_and_sticks_exactly():
     mu = 0.4
     tf = time_freeze(point_mass(3, mu=mu, a_n=G), method=Inelastic(friction=InscribedPyramid()))
     assert tf.pss.switching.numel() == 4  # gap, v_n, v_x, v_y
+    with pytest.raises(InvalidInput, match="`friction` must be a `SpatialFriction` strategy"):
+        Inelastic(friction="pyramid")
     assert dict(tf.info)["friction"] == "inscribed_pyramid"
     y = np.array([0, 0, 0, 2.0, 0.0, 0.0, 0.0])  # columns: ode, ++, +-, -+, --
     theta, ydot = sliding_weights(tf, y, [], columns=[0, 1, 2], rows=[1, 3])

@@ -25,6 +25,9 @@ finite at v_t = 0 (a ball dropped straight down starts there) the norm is smooth
 ||v_t||_eps = sqrt(v_t^T v_t + eps_t^2), and the switching function is
 c_vt = ||v_t||_eps - sqrt(2) eps_t, which is zero exactly on ||v_t|| = eps_t; the
 relative error of the slip force is below eps_t^2 / (2 ||v_t||^2).
+`Inelastic(friction=InscribedPyramid())` replaces the 3-D pair by planar friction along
+each tangent with mu / sqrt(2) (the square inscribed in the cone; `InscribedPyramid`):
+linear in v, stick exact, for several feet standing at once (benchmarks/legged.md).
 
 The Heaviside product form (DESIGN.md 4.4) combines the contacts:
 
