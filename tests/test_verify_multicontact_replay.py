@@ -87,8 +87,8 @@ def test_auto_replay_falls_back_to_fesd_when_the_multicontact_simulation_stops(p
     stopped = check_time_freezing_plan(pushed_box, VerifyOptions(replay=starved))
     assert not stopped.passed and stopped.end_state_deviation == np.inf
     assert stopped.method == "event-driven multi-contact reference (stopped)"
-    assert stopped.notes[0].startswith("multi-contact simulation stopped at t = ")
-    assert "(max_rhs_evaluations): stopped after 20" in stopped.notes[0]
+    assert stopped.notes[0].startswith("multi-contact reference stopped at t = ")
+    assert "with status max_rhs_evaluations: stopped after 20" in stopped.notes[0]
     auto = check_time_freezing_plan(pushed_box, VerifyOptions(replay=AutoReplay(
         fallback=FesdReplay(refinement=2), multicontact=starved)))
     assert auto.method.startswith("FESD re-simulation, 8 steps")

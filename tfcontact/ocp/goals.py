@@ -201,6 +201,18 @@ class LiftOffs(Goal):
                          bool(rises >= self.count), GOAL_MISSED)
 
 
+def sample_runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """The runs of consecutive True samples of `mask`, as (first, last) index pairs."""
+    runs, start = [], None
+    for k, value in enumerate(np.asarray(mask, dtype=bool)):
+        if value and start is None:
+            start = k
+        if start is not None and (not value or k == len(mask) - 1):
+            runs.append((start, k if value else k - 1))
+            start = None
+    return runs
+
+
 @dataclass(frozen=True)
 class Flight(Goal):
     """Contacts `contacts` are all off the ground together, each gap above `height` [m],
@@ -225,14 +237,8 @@ class Flight(Goal):
 
     def check(self, motion: Motion) -> GoalCheck:
         airborne = np.all(motion.gaps[:, list(self.contacts)] > self.height, axis=1)
-        longest, start = 0.0, None
-        for k, up in enumerate(airborne):
-            if up and start is None:
-                start = k
-            if up:
-                longest = max(longest, float(motion.t[k] - motion.t[start]))
-            else:
-                start = None
+        longest = max((float(motion.t[b] - motion.t[a]) for a, b in sample_runs(airborne)),
+                      default=0.0)
         return GoalCheck("flight", f"longest time contacts {list(self.contacts)} are all "
                          f"above {self.height:g} m [s]", longest, self.duration,
                          bool(longest >= self.duration), GOAL_MISSED)

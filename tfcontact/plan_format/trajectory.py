@@ -830,15 +830,7 @@ def stance_intervals(t: np.ndarray, gaps: np.ndarray, touch: float = STANCE_GAP
     gaps = np.asarray(gaps, dtype=float).reshape(t.size, -1)
     if not (isinstance(touch, int | float) and touch >= 0 and np.isfinite(touch)):
         raise InvalidInput(f"`touch` must be a finite gap >= 0 [m], got {touch!r}")
-    schedule = []
-    for down in (gaps <= touch).T:
-        intervals, start = [], None
-        for k, closed in enumerate(down):
-            if closed and start is None:
-                start = k
-            if start is not None and (not closed or k == down.size - 1):
-                end = k if closed else k - 1
-                intervals.append((float(t[start]), float(t[end])))
-                start = None
-        schedule.append(tuple(intervals))
-    return tuple(schedule)
+    from tfcontact.ocp.goals import sample_runs
+
+    return tuple(tuple((float(t[a]), float(t[b])) for a, b in sample_runs(down))
+                 for down in (gaps <= touch).T)

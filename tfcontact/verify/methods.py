@@ -190,14 +190,19 @@ class MultiContactReplay(Replay):
         return ReplayOutcome(sim.deviation_at(plan.horizon, plan.end_state), method,
                              local_defects=defects)
 
+    @staticmethod
+    def stop_note(sim: MultiContactSimulation) -> str:
+        """The verification's note on a simulation that stopped with a status."""
+        stop = sim.t[-1] if sim.t.size else 0.0
+        return (f"multi-contact reference stopped at t = {stop:.6g} s with status "
+                f"{sim.status.value}: {sim.message}")
+
     def run(self, plan: TimeFreezingPlan, gap_tolerance: float,
             notes: list[str]) -> ReplayOutcome:
         sim = self.simulate(plan, gap_tolerance)
         defects = self.local_defects(plan, gap_tolerance)
         if not sim.success:
-            stop = sim.t[-1] if sim.t.size else 0.0
-            notes.append(f"multi-contact simulation stopped at t = {stop:.6g} s "
-                         f"({sim.status.value}): {sim.message}")
+            notes.append(self.stop_note(sim))
             return ReplayOutcome(math.inf, "event-driven multi-contact reference (stopped)",
                                  local_defects=defects)
         return self.outcome(plan, sim, defects)
@@ -301,7 +306,5 @@ class AutoReplay(Replay):
         else:
             if sim.success:
                 return MultiContactReplay.outcome(plan, sim, defects)
-            stop = sim.t[-1] if sim.t.size else 0.0
-            notes.append(f"multi-contact reference stopped at t = {stop:.6g} s with status "
-                         f"{sim.status.value}: {sim.message}; FESD used")
+            notes.append(MultiContactReplay.stop_note(sim) + "; FESD used")
         return replace(self.fallback.run(plan, gap_tolerance, notes), local_defects=defects)
