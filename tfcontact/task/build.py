@@ -76,7 +76,8 @@ def build_task(task: Task) -> TaskSetup:
     from tfcontact.ocp.contact import ContactProblem
     from tfcontact.robot import BASE_COORDINATES, ContactSpec, Ground, load_robot
     from tfcontact.task.presets import SOLVER_PRESETS
-    from tfcontact.timefreezing import Inelastic, InscribedPyramid, SmoothedCone, time_freeze
+    from tfcontact.task.spec import FRICTION_MODELS
+    from tfcontact.timefreezing import Inelastic, time_freeze
     from tfcontact.timefreezing.from_robot import from_robot
 
     robot = load_robot(task.robot.source, base=task.robot.base,
@@ -109,7 +110,7 @@ def build_task(task: Task) -> TaskSetup:
         v_names=tuple(f"v_{n}" for n in names),
         control_names=tuple(f"u_{names[_v_index(robot, a, names)]}" for a in actuated))
     elastic = any(c.restitution > 0 for c in task.contacts)
-    friction = {"cone": SmoothedCone, "pyramid": InscribedPyramid}[task.friction_model]()
+    friction = FRICTION_MODELS[task.friction_model]()
     tf = time_freeze(cls, method=None if elastic else Inelastic(gap_scale=task.gap_scale,
                                                                 friction=friction))
 

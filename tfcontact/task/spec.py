@@ -18,11 +18,13 @@ from typing import Any
 from tfcontact.errors import InvalidInput, positive_int
 from tfcontact.robot.spec import BASES
 from tfcontact.robot.terrain import Plane, Region, Terrain
+from tfcontact.timefreezing import InscribedPyramid, SmoothedCone, SpatialFriction
 
 GUESSES = ("start", "reference")
 """The initial guesses a task can ask for (`Task.guess`)."""
-FRICTION_MODELS = ("cone", "pyramid")
-"""`Task.friction_model` values: `tfcontact.timefreezing.SmoothedCone`, `InscribedPyramid`."""
+FRICTION_MODELS: dict[str, type[SpatialFriction]] = {"cone": SmoothedCone,
+                                                     "pyramid": InscribedPyramid}
+"""`Task.friction_model` -> the `Inelastic(friction=...)` strategy it builds."""
 
 
 def finite(value: object, where: str, *, low: float | None = None, strict: bool = False,
