@@ -17,15 +17,21 @@ def test_plan_list_names_the_hopper(capsys):
 
 
 def test_monoped_plan_is_tf9_from_the_urdf():
-    """The CLI's monoped plan solves TF-9 from the URDF with its own chain (no attempts to
-    set): the full task by default, T = 2.5 s, N = 20, three elliptic holes, the ground
-    lowered by the foot's radius in the sidecar's scene."""
+    """The CLI's monoped plan solves TF-9 from the URDF in three stages (the reduced hop
+    discovered, re-solved exactly, tiled for the full task and re-solved): the full task by
+    default, T = 2.5 s, N = 20, three elliptic holes, the ground lowered by the foot's
+    radius in the sidecar's scene; `--task reduced` stops after the reduced hop."""
     from tfcontact.scenes.monoped import monoped_problem
     from tfcontact.scenes.monoped_exact import EXACT_TASK
 
     plan = PLANS["monoped"]
-    assert plan.build is None and plan.tasks == ("full", "reduced", "hand-set")
-    assert [s.name for s in plan.stages] == ["own solver"]
+    assert plan.tasks == ("full", "reduced", "hand-set")
+    assert plan.build(None).problem.horizon == 1.0  # the discovery is the reduced task's
+    assert [s.name for s in plan.stages_for("full")] == [
+        "discover the reduced task's hop", "exact re-solve of the reduced hop",
+        "exact re-solve of TF-9's task"]
+    assert plan.stages_for("hand-set") == plan.stages_for("full")
+    assert plan.stages_for("reduced") == plan.stages[:2]
     mp = monoped_problem(EXACT_TASK)
     assert mp.robot.nq == 4 and mp.problem.n_intervals == 20 and mp.problem.horizon == 2.5
     scene = mp.scene()
@@ -37,9 +43,15 @@ def test_monoped_plan_is_tf9_from_the_urdf():
         monoped_options("sprint")
 
 
-def test_monoped_refuses_attempts(capsys, tmp_path):
-    assert main(["plan", "monoped", "--attempts", "2", "--out", str(tmp_path), "--quiet"]) == 2
-    assert "plan `monoped` has no attempts to set" in capsys.readouterr().err
+def test_attempts_are_refused_for_a_plan_without_discovery(capsys, tmp_path, monkeypatch):
+    from tfcontact.scenes import plans
+    from tfcontact.scenes.pipeline import ExactResolve, Plan
+
+    monkeypatch.setitem(plans.PLANS, "resolve", Plan("resolve", "re-solve only", ("only",),
+                                                     (ExactResolve(),)))
+    assert main(["plan", "resolve", "--attempts", "2", "--out", str(tmp_path), "--quiet"]) == 2
+    assert "plan `resolve` has no discovery whose attempts could be set" in \
+        capsys.readouterr().err
 
 
 def test_unknown_plan_and_task_are_named(capsys, tmp_path):

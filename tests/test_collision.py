@@ -576,18 +576,28 @@ def test_a_plan_through_the_terrain_is_not_a_success(leg, tmp_path, monkeypatch)
     import json
 
     from tfcontact.scenes import plans
-    from tfcontact.scenes.plans import COLLISION, OwnSolver, Plan, PlanOutcome
+    from tfcontact.scenes.pipeline import Plan, PlanOutcome, Stage
+    from tfcontact.scenes.plans import COLLISION
+
+    class Given(Stage):  # a stage whose outcome is given
+        name = "given"
+
+        def __init__(self, solve):
+            self.solve = solve
+
+        def run(self, given):
+            return self.solve()
 
     path, robot = leg
     t, q = _leg_motion()
     scene = {"terrain": {"type": "flat", "height": 0.0},
              "boxes": [{"center": list(STEP["center"]), "size": list(STEP["size"])}]}
 
-    def solve(task, out, verbose):
+    def solve():
         return PlanOutcome(_trajectory(path, q, t, scene), robot, "converged", True,
                            "verification PASSED")
 
-    monkeypatch.setitem(plans.PLANS, "leg", Plan("leg", "a leg", ("only",), (OwnSolver(solve),)))
+    monkeypatch.setitem(plans.PLANS, "leg", Plan("leg", "a leg", ("only",), (Given(solve),)))
     report = plans.run_plan("leg", tmp_path / "out", verbose=False)
     assert (report.success, report.status) == (False, COLLISION)
     assert "knee_0" in report.summary and "t = 0.410 s" in report.summary
@@ -596,10 +606,10 @@ def test_a_plan_through_the_terrain_is_not_a_success(leg, tmp_path, monkeypatch)
 
     clear = {"terrain": {"type": "flat", "height": 0.0}}  # no step: the same motion is fine
 
-    def solve_clear(task, out, verbose):
+    def solve_clear():
         return PlanOutcome(_trajectory(path, q, t, clear), robot, "converged", True, "ok")
 
     monkeypatch.setitem(plans.PLANS, "leg", Plan("leg", "a leg", ("only",),
-                                                    (OwnSolver(solve_clear),)))
+                                                    (Given(solve_clear),)))
     report = plans.run_plan("leg", tmp_path / "clear", verbose=False)
     assert (report.success, report.status) == (True, "converged")

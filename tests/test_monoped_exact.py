@@ -1,6 +1,7 @@
-"""TF-9's two-stage chain (tfcontact.scenes.monoped_exact): the continuation past an
-iteration cap, the tiled guess, the files `tfcontact plan monoped` writes, and the reduced
-task end to end (slow: about 6 minutes)."""
+"""TF-9's monoped as stages (tfcontact.scenes.monoped_exact): the reduced hop's start, the
+tiled guess and the schedule search, the Radau levels, the files `tfcontact plan monoped`
+writes, and the reduced task end to end (slow: about 6 minutes). The chain's own rules
+(iteration caps, failures, refined meshes) are tested in tests/test_ocp_chain.py."""
 
 from __future__ import annotations
 
@@ -11,97 +12,55 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from stand_in_plans import SAVED_PLAN, saved_plan, stand_in_plan
 
-import tfcontact.scenes.monoped_exact as chain_module
+import tfcontact.ocp.chain as chain
+import tfcontact.scenes.monoped_exact as monoped_exact
 from tfcontact.cli import main
 from tfcontact.errors import InvalidInput
+from tfcontact.ocp.chain import ResolveChain, resolve_chain
 from tfcontact.ocp.polish import FLIGHT, STICK, Phase, PolishedPlan
 from tfcontact.plan_format import load_trajectory
+from tfcontact.plan_format.resolved import load_resolved_plan
 from tfcontact.scenes.monoped import REDUCED_TASK, monoped_problem
 from tfcontact.scenes.monoped_exact import (
     EXACT_TASK,
     HAND_SET_SCHEDULE,
-    ExactPlan,
+    OneHopWithSlip,
     Schedule,
+    TiledHops,
     tiled_guess,
     verify_saved,
 )
-
-SAVED_PLAN = Path(__file__).resolve().parents[1] / "benchmarks" / "monoped_exact_plan.npz"
-
-
-def _plan(status: str, cost: float, shift: float = 0.0, verification=None) -> PolishedPlan:
-    t = np.linspace(0.0, 1.0, 5)
-    return PolishedPlan(
-        phases=(Phase(STICK, 0.0, 1.0),), t=t, x=np.zeros((5, 8)) + shift, u=np.zeros((10, 2)),
-        boundary_states=np.zeros((11, 8)), contact_forces=np.zeros((0, 2)),
-        impact_impulses=np.zeros((0, 2)), cost=cost, ipopt_status=status, iterations=7,
-        solve_time=1.0, verification=verification or types.SimpleNamespace(passed=True,
-                                                                           summary=str))
+from tfcontact.scenes.pipeline import NoStart, Plan, PlanOutcome, StageInput
 
 
-def test_a_capped_step_hands_its_iterate_on_and_the_last_is_solved_again(monkeypatch):
-    """Step 1 stops at the iteration cap: step 2 starts from its iterate. Step 2 stops at
-    the cap too: it is solved once more from its own iterate, and that decides."""
-    outcomes = iter([("Maximum_Iterations_Exceeded", 1.0), ("Maximum_Iterations_Exceeded", 2.0),
-                     ("Solve_Succeeded", 3.0)])
-    guesses = []
-
-    def fake_polish(problem, phases, options, *, guess, verbose):
-        guesses.append(None if guess is None else float(guess[1][0, 0]))
-        status, cost = next(outcomes)
-        return _plan(status, cost, shift=cost)
-
-    monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
-    mp = monoped_problem(REDUCED_TASK)
-    levels = [("first", mp, None), ("second", mp, None)]
-    result = chain_module.run_chain(levels, (Phase(STICK, 0, 1),), None, [], 0.0,
-                                 verbose=False)
-    assert guesses == [None, 1.0, 2.0]  # each solve starts from the last iterate
-    assert [s.name for s in result.steps] == ["first", "second",
-                                              "second, again from its capped iterate"]
-    assert result.plan.cost == 3.0 and result.status == "converged" and not result.message
-
-
-def test_any_other_failure_stops_the_chain(monkeypatch):
-    calls = []
-
-    def fake_polish(problem, phases, options, *, guess, verbose):
-        calls.append(1)
-        return _plan("Infeasible_Problem_Detected", 1.0)
-
-    monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
-    mp = monoped_problem(REDUCED_TASK)
-    result = chain_module.run_chain([("first", mp, None), ("second", mp, None)],
-                                 (Phase(STICK, 0, 1),), None, [], 0.0, verbose=False)
-    assert len(calls) == 1 and result.status == "nlp_failed" and not result.success
-    assert "first: IPOPT Infeasible_Problem_Detected" in result.summary()
-
-
-def test_a_level_may_set_its_options_from_the_last_plan(monkeypatch):
-    """The Radau levels: the second refines the first's mesh where its local defects
-    exceed 0.05 / 20 (intervals 3 and 7 here), doubling their 12 elements."""
+def test_the_radau_levels_refine_the_mesh_where_the_local_defects_are_large(monkeypatch):
+    """The Radau levels: 12 elements per interval with the cone 2 % inside, then that mesh
+    doubled where its local defects exceed 0.05 / 20 (intervals 3 and 7 here)."""
     seen = []
     defects = [1e-4] * 20
     defects[3], defects[7] = 0.03, float("nan")
 
     def fake_polish(problem, phases, options, *, guess, verbose):
         seen.append(options)
-        plan = _plan("Solve_Succeeded", 1.0, verification=types.SimpleNamespace(
+        plan = stand_in_plan("Solve_Succeeded", 1.0, verification=types.SimpleNamespace(
             passed=True, summary=str, local_defects=tuple(defects)))
         return dataclasses.replace(plan, integrator=options.integrator,
                                    substeps=options.substeps_per_interval(20))
 
-    monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
+    monkeypatch.setattr(chain, "polish_contact", fake_polish)
+    monkeypatch.setattr(chain, "path_violation", lambda problem, plan: 0.0)
     mp = monoped_problem(EXACT_TASK)
-    result = chain_module.run_chain(chain_module.radau_levels(mp), (Phase(STICK, 0, 2.5),),
-                                 None, [], 0.0, verbose=False)
+    result = resolve_chain(monoped_exact.radau_levels(mp.problem), (Phase(STICK, 0, 2.5),),
+                           None, verbose=False)
     assert result.status == "converged" and len(seen) == 2
     assert seen[0].integrator == "radau" and seen[0].substeps == 12
     assert seen[0].cone_margins == (0.98,)
     expected = [12] * 20
     expected[3] = expected[7] = 24
     assert seen[1].substeps == tuple(expected) and seen[1].integrator == "radau"
+    assert seen[1].cone_margins == (0.98,)
 
 
 def test_tiled_guess_repeats_the_hop_on_the_schedule():
@@ -145,7 +104,7 @@ def _hop() -> PolishedPlan:
 def test_uniform_schedules_hop_once_per_hole_and_land_before_the_horizon():
     """Lift-offs k_1, k_1 + s, k_1 + 2 s intervals (0.125 s), flights as long as the hop's
     (0.29 s); (5, 6) would land at 2.415 s, after T - T / N = 2.375 s: left out."""
-    schedules = chain_module.uniform_schedules(_hop())
+    schedules = monoped_exact.uniform_schedules(_hop())
     assert [s.lift_offs for s in schedules] == [
         (0.375, 1.0, 1.625), (0.375, 1.125, 1.875), (0.5, 1.125, 1.75), (0.5, 1.25, 2.0),
         (0.625, 1.25, 1.875)]
@@ -162,12 +121,13 @@ def test_the_search_keeps_the_solved_schedule_with_the_lowest_objective(monkeypa
     def fake_polish(problem, phases, options, *, guess, verbose):
         lift_off = next(p.start for p in phases if p.mode == FLIGHT)
         seen.append(lift_off)
-        return _plan(*outcomes[lift_off])
+        return stand_in_plan(*outcomes[lift_off])
 
-    monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
+    monkeypatch.setattr(monoped_exact, "polish_contact", fake_polish)
     mp = monoped_problem(EXACT_TASK)
     schedules = tuple(Schedule((a, a + 0.75), 0.26) for a in outcomes)
-    best, trials = chain_module.search_schedule(_hop(), schedules, mp, None, verbose=True)
+    best, trials = monoped_exact.search_schedule(_hop(), schedules, mp.problem, None,
+                                                 verbose=True)
     assert seen == list(outcomes) and len(trials) == 4
     out = capsys.readouterr().out  # a line as each candidate starts, one as it ends
     assert "monoped: schedule 2 of 4, lift-offs 0.5, 1.25 s" in out
@@ -175,38 +135,87 @@ def test_the_search_keeps_the_solved_schedule_with_the_lowest_objective(monkeypa
     assert best.schedule.lift_offs == (0.625, 1.375) and best.plan.cost == 190.0
     outcomes.update({0.375: ("Infeasible_Problem_Detected", 1.0),
                      0.625: ("Restoration_Failed", 1.0)})
-    best, trials = chain_module.search_schedule(_hop(), schedules, mp, None, verbose=False)
+    best, trials = monoped_exact.search_schedule(_hop(), schedules, mp.problem, None,
+                                                 verbose=False)
     assert best is None and len(trials) == 4
 
 
-def test_the_searched_schedule_s_re_solve_starts_the_rest_of_the_chain(monkeypatch):
-    """With schedule="search": every candidate is a step of the chain, the cheapest solved
-    one's plan is the next re-solve's guess, and the chain skips its own first step."""
+def _after_reduced(chain_status: str = "Solve_Succeeded", task: str = "full") -> StageInput:
+    """What the full task's stage gets: the reduced hop's exact re-solve before it."""
     quiet = types.SimpleNamespace(passed=True, summary=str, local_defects=(1e-4,) * 20)
-    reduced = ExactPlan(dataclasses.replace(_hop(), verification=quiet),
-                        monoped_problem(REDUCED_TASK), (), 0.0, 1.0)
-    monkeypatch.setattr(chain_module, "reduced_exact_plan", lambda verbose: reduced)
+    hop = dataclasses.replace(_hop(), verification=quiet, ipopt_status=chain_status)
+    reduced = ResolveChain(hop, monoped_problem(REDUCED_TASK).problem,
+                           (chain.ChainStep.of("exact re-solve, 8 nodes", hop, 1.0),), 0.0, 1.0)
+    before = PlanOutcome(None, None, reduced.status, reduced.success, "reduced", chain=reduced)
+    return StageInput("monoped", task, Path("."), False, None, before)
+
+
+def test_the_searched_schedule_s_re_solve_starts_the_rest_of_the_chain(monkeypatch):
+    """With "search": every candidate is a step of the chain, the cheapest solved one's
+    plan is the next re-solve's guess, and the chain skips its own first level."""
+    quiet = types.SimpleNamespace(passed=True, summary=str, local_defects=(1e-4,) * 20)
     costs = iter([203.0, 190.0, 223.0, 446.0, 205.0, 191.0, 191.5, 192.6, 192.6])
     guesses = []
 
     def fake_polish(problem, phases, options, *, guess, verbose):
         guesses.append(guess)
         cost = next(costs)
-        return _plan("Solve_Succeeded", cost, shift=cost, verification=quiet)
+        return stand_in_plan("Solve_Succeeded", cost, shift=cost, verification=quiet)
 
-    monkeypatch.setattr(chain_module, "polish_contact", fake_polish)
-    result = chain_module.full_exact_plan(verbose=False)
+    monkeypatch.setattr(monoped_exact, "polish_contact", fake_polish)
+    monkeypatch.setattr(chain, "polish_contact", fake_polish)
+    monkeypatch.setattr(chain, "path_violation", lambda problem, plan: 0.0)
+    stage = monoped_exact.STAGES[2]
+    levels = monoped_exact.full_levels(monoped_exact.full_setup())
+    start = stage.start.begin(_after_reduced(), levels)
+    assert start.skip_levels == 1
+    result = resolve_chain(levels[start.skip_levels:], start.phases, start.guess,
+                           steps=start.steps, verbose=False)
     names = [step.name for step in result.steps]
-    assert len(names) == 5 + 4 and all("lift-offs" in n for n in names[:5])
-    assert "lift-offs 0.375, 1.125, 1.875 s" in names[1] and result.steps[1].objective == 190.0
-    assert names[5] == "full task, bump holes, 16 nodes x 2 RK4 steps"
+    assert names[0] == "exact re-solve, 8 nodes"  # the reduced hop's steps come first
+    assert len(names) == 1 + 5 + 4 and all("lift-offs" in n for n in names[1:6])
+    assert "lift-offs 0.375, 1.125, 1.875 s" in names[2] and result.steps[2].objective == 190.0
+    assert names[6] == "full task, bump holes, 16 nodes x 2 RK4 steps"
     assert guesses[5][1][0, 0] == 190.0  # the chosen candidate's states
     assert result.status == "converged" and result.plan.cost == 192.6
 
 
-def test_full_exact_plan_refuses_an_unknown_schedule():
-    with pytest.raises(InvalidInput, match="Schedule or 'search'"):
-        chain_module.full_exact_plan(verbose=False, schedule="hand")
+def test_the_hand_set_schedule_is_followed_from_the_chain_s_first_level():
+    levels = monoped_exact.full_levels(monoped_exact.full_setup())
+    start = monoped_exact.STAGES[2].start.begin(_after_reduced(task="hand-set"), levels)
+    assert start.skip_levels == 0
+    assert [p.start for p in start.phases if p.mode == FLIGHT] == list(HAND_SET_SCHEDULE.lift_offs)
+
+
+def test_the_hops_are_tiled_only_from_a_verified_reduced_hop(monkeypatch):
+    with pytest.raises(NoStart, match="the reduced hop is not verified \\(nlp_failed"):
+        TiledHops({"full": "search"}).begin(_after_reduced("Infeasible_Problem_Detected"), ())
+    monkeypatch.setattr(monoped_exact, "polish_contact",
+                        lambda *a, **k: stand_in_plan("Infeasible_Problem_Detected", 1.0))
+    levels = monoped_exact.full_levels(monoped_exact.full_setup())
+    with pytest.raises(NoStart, match="no schedule of 5 gave a solved re-solve"):
+        TiledHops({"full": "search"}).begin(_after_reduced(), levels)
+
+
+def test_an_unknown_schedule_is_refused():
+    with pytest.raises(InvalidInput, match="a schedule must be a Schedule or 'search'"):
+        TiledHops({"full": "hand"})
+
+
+def test_the_reduced_hop_is_followed_with_a_slip_before_its_lift_off(monkeypatch):
+    """The discovered stick, flight, stick becomes stick, slip, flight, stick with the slip
+    from 0.55 s; another sequence gives no start, with the sequence named."""
+    found = (Phase(STICK, 0.0, 0.6), Phase(FLIGHT, 0.6, 0.88), Phase(STICK, 0.88, 1.0))
+    monkeypatch.setattr(monoped_exact, "contact_phases", lambda result: found)
+    monkeypatch.setattr(monoped_exact, "discovery_step", lambda result: None)
+    given = StageInput("monoped", "reduced", Path("."), False, None,
+                       PlanOutcome(None, None, "converged", True, "", result=object()))
+    start = OneHopWithSlip().begin(given, ())
+    assert [(p.mode, p.start, p.end) for p in start.phases] == [
+        (STICK, 0.0, 0.55), ("slip-", 0.55, 0.6), (FLIGHT, 0.6, 0.88), (STICK, 0.88, 1.0)]
+    monkeypatch.setattr(monoped_exact, "contact_phases", lambda result: found[:1])
+    with pytest.raises(NoStart, match="not one hop lifting off after 0.55 s"):
+        OneHopWithSlip().begin(given, ())
 
 
 @pytest.mark.parametrize("lift_offs, flight, match", [
@@ -222,47 +231,38 @@ def test_a_schedule_landing_after_the_horizon_is_refused():
         tiled_guess(None, EXACT_TASK, Schedule(lift_offs=(0.5, 2.375), flight_time=0.26))
 
 
-@pytest.mark.parametrize("task, schedule", [(None, "search"), ("full", "search"),
-                                            ("hand-set", chain_module.HAND_SET_SCHEDULE)])
-def test_plan_monoped_searches_its_schedule_unless_asked_for_the_hand_set_one(
-        monkeypatch, tmp_path, capsys, task, schedule):
-    """The full task (the default) runs the chain with schedule="search", `--task
-    hand-set` with `HAND_SET_SCHEDULE`; a chain that found no schedule exits 1 with its
-    reason and writes no plan."""
-    calls = []
-
-    def fake(verbose, schedule):
-        calls.append(schedule)
-        return ExactPlan(None, monoped_problem(EXACT_TASK), (), float("nan"), 1.0,
-                         message="no schedule of 5 gave a solved re-solve")
-
-    monkeypatch.setattr(chain_module, "full_exact_plan", fake)
-    assert main(["plan", "monoped", "--out", str(tmp_path)]
-                + (["--task", task] if task else [])) == 1
-    assert calls == [schedule]
-    assert "no schedule of 5 gave a solved re-solve" in capsys.readouterr().out
-    assert not (tmp_path / "plan.npz").exists()
+def test_plan_monoped_searches_its_schedule_unless_asked_for_the_hand_set_one():
+    """The full task (the default) searches the schedule, `--task hand-set` follows
+    `HAND_SET_SCHEDULE`, `--task reduced` stops after the reduced hop."""
+    plan = monoped_exact.STAGES
+    assert plan[2].start.schedules == {"full": "search", "hand-set": HAND_SET_SCHEDULE}
+    assert plan[2].tasks == ("full", "hand-set") and plan[1].tasks is None
 
 
 def test_plan_monoped_writes_plan_trajectory_and_replay(monkeypatch, tmp_path, capsys):
-    """`tfcontact plan monoped` writes the chain's plan (verified again from the file),
-    its trajectory with the three touchdowns as frozen pieces carrying the impulses,
-    the figures and the replay; the chain itself is replaced by the saved plan."""
-    saved = np.load(SAVED_PLAN)
-    phases = chain_module.saved_phases(saved)
+    """`tfcontact plan monoped` writes the exact plan's node file (verified again from the
+    file), its trajectory with the three touchdowns as frozen pieces carrying the
+    impulses, the figures and the replay; the stages are replaced by the saved plan."""
+    from tfcontact.scenes import plans
+    from tfcontact.scenes.pipeline import Stage, resolved_outcome
+
+    saved = load_resolved_plan(SAVED_PLAN)
     verification, holes = verify_saved(SAVED_PLAN)
-    plan = PolishedPlan(
-        phases=phases, t=saved["t"], x=saved["x"], u=saved["u"],
-        boundary_states=saved["boundary"], contact_forces=np.zeros((0, 2)),
-        impact_impulses=np.zeros((0, 2)), cost=236.9, ipopt_status="Solve_Succeeded",
-        iterations=1, solve_time=1.0, verification=verification, integrator="radau",
-        substeps=tuple(int(n) for n in saved["substeps"]))
-    mp = monoped_problem(EXACT_TASK)
-    fake = ExactPlan(plan, mp, (), holes, 1.0)
-    monkeypatch.setattr(chain_module, "full_exact_plan", lambda verbose, schedule: fake)
+    plan = saved_plan(verification, cost=236.9)
+    setup = monoped_exact.full_setup()
+    resolved = ResolveChain(plan, setup.problem, (), chain.path_violation(setup.problem, plan),
+                            1.0)
+
+    class Saved(Stage):
+        name = "saved"
+
+        def run(self, given):
+            return resolved_outcome(resolved, setup, None)
+
+    monkeypatch.setitem(plans.PLANS, "monoped", Plan("monoped", "saved", ("full",), (Saved(),)))
     assert main(["plan", "monoped", "--out", str(tmp_path)]) == 0
     assert "plan monoped (full): converged" in capsys.readouterr().out
-    for name in ("plan.npz", "path.png", "trajectory.npz", "trajectory.json", "replay.html",
+    for name in ("plan.npz", "trajectory.npz", "trajectory.json", "replay.html", "path.png",
                  "contacts.png", "summary.json"):
         assert (tmp_path / name).is_file(), name
     again, _ = verify_saved(tmp_path / "plan.npz")
@@ -278,9 +278,11 @@ def test_plan_monoped_writes_plan_trajectory_and_replay(monkeypatch, tmp_path, c
     assert np.all(traj.impulse[landing, 0, 2] > 0)  # pushing up
     assert traj.solver["method"].startswith("exact re-solve")
     assert traj.solver["method"].endswith("Radau IIA collocation on the fixed control grid")
-    assert traj.solver["steps_per_interval"] == list(saved["substeps"])
+    assert traj.solver["steps_per_interval"] == list(saved.substeps)
+    assert traj.solver["path_violation"] <= chain.PATH_TOLERANCE
+    assert [h["x_c"] for h in traj.scene["holes"]] == [0.5, 1.5, 2.5]
     # every node is a sample
-    assert traj.q.shape[0] == saved["t"].size
+    assert traj.q.shape[0] == saved.t.size
 
 
 @pytest.mark.slow
@@ -311,27 +313,25 @@ def test_radau_levels_turn_the_rk4_plan_into_a_verified_radau_plan():
     with): 12 Radau IIA elements per interval fail the exact replay, the mesh refined where
     the local defects are large passes it, 4x closer than the RK4 plan (measured: 262 and
     783 iterations, 8 minutes; defects summing to 8.6e-3 against the RK4 plan's 3.7e-2)."""
-    rk4 = np.load(SAVED_PLAN.with_name("monoped_exact_rk4_plan.npz"))
+    rk4 = load_resolved_plan(SAVED_PLAN.with_name("monoped_exact_rk4_plan.npz"))
     mp = monoped_problem(EXACT_TASK)
-    result = chain_module.run_chain(chain_module.radau_levels(mp),
-                                 chain_module.saved_phases(rk4), (rk4["t"], rk4["x"], rk4["u"]),
-                                 [], 0.0, verbose=False)
+    result = resolve_chain(monoped_exact.radau_levels(mp.problem), rk4.phases,
+                           (rk4.t, rk4.x, rk4.u), verbose=False)
     first, refined = result.steps
     assert first.status == "verification_failed" and refined.status == "converged"
     assert result.success and result.plan.integrator == "radau"
     assert max(result.plan.substeps) == 24 and min(result.plan.substeps) == 12
     v = result.plan.verification
     assert v.defect_sum < 2e-2 and v.min_gap >= -1e-3
-    assert result.smallest_hole_value >= -1e-6
+    assert result.path_violation <= 1e-6
+    assert np.min(mp.hole_values(result.plan.x[:, :4])) >= -1e-6
     np.testing.assert_allclose(result.plan.boundary_states[-1][:4], EXACT_TASK.q_goal,
                                atol=1e-6)
 
 
-def test_a_verified_plan_in_a_hole_is_not_a_success():
-    """The replay passes but the foot's nodes lie 1e-3 inside a hole: verification_failed."""
-    plan = _plan("Solve_Succeeded", 1.0)
-    mp = monoped_problem(REDUCED_TASK)
-    assert ExactPlan(plan, mp, (), 0.0, 1.0).success
-    inside = ExactPlan(plan, mp, (), -1e-3, 1.0)
-    assert inside.status == "verification_failed" and not inside.success
-    assert ExactPlan(None, mp, (), float("nan"), 1.0, message="no hop").status == "chain_failed"
+def test_the_scene_draws_the_holes_the_problem_keeps_out():
+    from tfcontact.scenes.monoped import hole_profile
+
+    scene = monoped_problem(REDUCED_TASK).scene()
+    np.testing.assert_array_equal(scene["holes"][0]["profile"],
+                                  hole_profile(REDUCED_TASK, 0.5))

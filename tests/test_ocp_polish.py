@@ -11,7 +11,8 @@ import pytest
 
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp import polish
-from tfcontact.scenes.monoped_exact import saved_phases, verify_saved
+from tfcontact.plan_format.resolved import load_resolved_plan
+from tfcontact.scenes.monoped_exact import verify_saved
 from tfcontact.scenes.particles import G, painleve_rod, point_mass
 from tfcontact.verify import planar_impulse_flow
 
@@ -214,7 +215,7 @@ def test_the_saved_full_plan_meets_tf9_and_passes_the_exact_replay(path):
     # the reduced task's robot, ground and friction are the full task's
     dyn = polish.HybridDynamics(monoped_problem("reduced").system.cls)
     forces, impulses = polish.contact_values(plan["t"], plan["x"], plan["u"],
-                                              saved_phases(plan), dyn, 2.5)
+                                              load_resolved_plan(path).phases, dyn, 2.5)
     assert len(impulses) == 3 and len(forces) > 300
     both = np.vstack([forces, impulses])
     assert both[:, 0].min() > 0
@@ -279,7 +280,7 @@ def test_tf9s_grid_re_solves_the_rk4_plan_but_fails_the_exact_replay():
     plan = np.load(RK4_PLAN)
     problem = monoped_problem(EXACT_TASK).problem
     polished = polish.polish_contact(
-        problem, saved_phases(plan),
+        problem, load_resolved_plan(RK4_PLAN).phases,
         polish.PolishOptions(substeps=3, integrator="radau", painleve_margin=0.0),
         guess=(plan["t"], plan["x"], plan["u"]), verbose=False)
     assert polished.solved
@@ -320,19 +321,6 @@ def test_a_capped_re_solve_reports_progress_and_fails_honestly(monkeypatch, caps
     assert plan.status == "nlp_failed" and not plan.success
 
 
-def test_blas_threads_are_set_for_the_solve_and_restored():
-    """The re-solves' paths depend on the BLAS thread count (measured: 458 against 2284
-    iterations): `blas_threads` sets CasADi's OpenBLAS for the solve and restores it."""
-    lib = polish.casadi_openblas()
-    if lib is None:
-        pytest.skip("this CasADi build has no bundled OpenBLAS")
-    before = lib.openblas_get_num_threads()
-    with polish.blas_threads(1):
-        assert lib.openblas_get_num_threads() == 1
-    with polish.blas_threads(3):
-        assert lib.openblas_get_num_threads() == 3
-    assert lib.openblas_get_num_threads() == before
-    with polish.blas_threads(None):
-        assert lib.openblas_get_num_threads() == before
+def test_blas_threads_is_validated():
     with pytest.raises(InvalidInput, match="blas_threads"):
         polish.PolishOptions(blas_threads=0)

@@ -10,16 +10,15 @@ import pytest
 
 from tfcontact.errors import InvalidInput
 from tfcontact.scenes import plans
-from tfcontact.scenes.plans import (
-    PLANS,
+from tfcontact.scenes.pipeline import (
     Discover,
     ExactResolve,
-    OwnSolver,
     Plan,
     PlanOutcome,
     Stage,
     StageInput,
 )
+from tfcontact.scenes.plans import PLANS
 from tfcontact.sweep import SweepSpec
 
 
@@ -30,6 +29,7 @@ class _Record(Stage):
     status: str
     seen: list
     name: str = "record"
+    tasks: tuple[str, ...] | None = None
 
     def run(self, given: StageInput) -> PlanOutcome:
         self.seen.append((given.plan, given.task, None if given.previous is None
@@ -52,11 +52,24 @@ def test_stages_run_in_turn_and_the_last_outcome_is_written(tmp_path, monkeypatc
 def test_plans_are_data():
     assert [s.name for s in PLANS["hopper"].stages] == ["discover"]
     assert [s.name for s in PLANS["hopper-exact"].stages] == ["discover", "exact re-solve"]
-    assert [s.name for s in PLANS["monoped"].stages] == ["own solver"]
+    assert [type(s) for s in PLANS["monoped"].stages] == [Discover, ExactResolve, ExactResolve]
     assert PLANS["hopper"].build is PLANS["hopper"].stages[0].build
-    assert PLANS["monoped"].build is None
     with pytest.raises(InvalidInput, match="needs stages"):
         Plan("none", "no stages", ("only",), ())
+    with pytest.raises(InvalidInput, match=r"names tasks \['long'\] the plan does not have"):
+        Plan("one", "one stage", ("short",), (ExactResolve(tasks=("long",)),))
+
+
+def test_a_stage_runs_only_for_its_tasks(tmp_path, monkeypatch):
+    seen: list = []
+    plan = Plan("two", "two stages", ("short", "long"),
+                (_Record("first", seen), _Record("converged", seen, tasks=("long",))))
+    monkeypatch.setitem(plans.PLANS, "two", plan)
+    report = plans.run_plan("two", tmp_path / "short", task="short", verbose=False)
+    assert report.status == "first" and seen == [("two", "short", None)]
+    report = plans.run_plan("two", tmp_path / "long", task="long", verbose=False)
+    assert report.status == "converged" and seen[1:] == [("two", "long", None),
+                                                          ("two", "long", "first")]
 
 
 def test_an_exact_resolve_needs_a_discovery_before_it(tmp_path):
@@ -65,10 +78,10 @@ def test_an_exact_resolve_needs_a_discovery_before_it(tmp_path):
         ExactResolve().run(given)
 
 
-def test_attempts_only_for_plans_whose_stages_take_them(tmp_path, monkeypatch):
+def test_attempts_only_for_plans_with_a_discovery(tmp_path, monkeypatch):
     monkeypatch.setitem(plans.PLANS, "own", Plan("own", "own", ("only",),
-                                                 (OwnSolver(lambda t, o, v: None),)))
-    with pytest.raises(InvalidInput, match="has no attempts to set"):
+                                                 (_Record("converged", []),)))
+    with pytest.raises(InvalidInput, match="has no discovery whose attempts could be set"):
         plans.run_plan("own", tmp_path / "out", attempts=2, verbose=False)
 
 
@@ -104,3 +117,25 @@ def test_discover_is_the_build_path_of_task_files(tmp_path):
 
     plan = task_plan(str(shipped_tasks()["hopper-vertical"]))
     assert [type(s) for s in plan.stages] == [Discover]
+
+
+def test_a_resolve_with_nothing_to_follow_keeps_the_outcome_before(tmp_path):
+    """A start that finds nothing to follow: the stage before's outcome (its trajectory
+    kept, never lost) with the reason, and a failed status: "chain_failed" where the stage
+    before had succeeded, its own failure otherwise."""
+    from tfcontact.scenes.pipeline import NoStart, PlanSetup, ResolveStart
+
+    class Nothing(ResolveStart):
+        def begin(self, given, levels):
+            raise NoStart("the hop did not lift off")
+
+    setup = PlanSetup(None, None, None, {})
+    stage = ExactResolve(levels=lambda setup: (), start=Nothing())
+    for status, success, expected in (("converged", True, "chain_failed"),
+                                      ("nlp_failed", False, "nlp_failed")):
+        before = PlanOutcome("trajectory", None, status, success, "discovered", setup=setup)
+        outcome = stage.run(StageInput("p", "t", tmp_path, False, None, before))
+        assert (outcome.status, outcome.success) == (expected, False)
+        assert outcome.trajectory == "trajectory"
+        assert outcome.summary == "discovered\nexact re-solve not started: the hop did not " \
+                                  "lift off"

@@ -39,7 +39,8 @@ from tfcontact.sweep import (
     ({"plan": "hopper", "starts": 0}, r"`starts` must be a positive integer, got 0"),
     ({"plan": "hopper", "starts": 2.5}, r"`starts` must be a positive integer, got 2.5"),
     ({"plan": "walker"}, r"unknown plan `walker`; sweepable plans: hopper, particle"),
-    ({"plan": "monoped"}, r"plan `monoped` solves itself in its own chain"),
+    ({"plan": "monoped"}, r"plan `monoped` has stages after its discovery \(exact re-solve "
+                          r"of the reduced hop, exact re-solve of TF-9's task\)"),
     ({"plan": "hopper", "task": "sprint"},
      r"plan `hopper` has no task `sprint`; tasks: short, long, bench"),
     ({"plan": "hopper", "seed": -1}, r"`seed` must be a non-negative integer, got -1"),
@@ -66,6 +67,16 @@ from tfcontact.sweep import (
 def test_spec_rejects_bad_input(kwargs, message):
     with pytest.raises(InvalidInput, match=message):
         SweepSpec(**kwargs)
+
+
+def test_a_plan_without_a_discovery_is_not_sweepable(monkeypatch):
+    from tfcontact.scenes import plans
+    from tfcontact.scenes.pipeline import ExactResolve, Plan
+
+    monkeypatch.setitem(plans.PLANS, "resolve", Plan("resolve", "re-solve only", ("only",),
+                                                     (ExactResolve(),)))
+    with pytest.raises(InvalidInput, match="plan `resolve` does not start with a discovery"):
+        SweepSpec("resolve")
 
 
 def test_spec_expands_the_grid_times_the_starts():
@@ -333,7 +344,7 @@ def test_a_case_that_raises_is_recorded_and_solved_again(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize(("argv", "message"), [
     (["hopper", "--starts", "0"], "`starts` must be a positive integer, got 0"),
-    (["monoped"], "plan `monoped` solves itself"),
+    (["monoped"], "plan `monoped` has stages after its discovery"),
     (["hopper", "--friction", "-1"], "`friction` values must be finite and >= 0"),
     (["hopper", "--workers", "0"], "`n_workers` must be a positive integer, got 0"),
 ])

@@ -492,3 +492,43 @@ def test_check_script_exit_codes(tmp_path):
     meta = json.loads(sidecar.read_text())
     sidecar.write_text(json.dumps({**meta, "npz_sha256": "0" * 64}))
     assert run()[0] == 2
+
+
+# ---- the node file of an exact re-solve (tfcontact.plan_format.resolved) ----------------
+
+def test_an_exact_plan_s_node_file_reads_back_what_was_written(tmp_path):
+    """The saved TF-9 plan read, written with `save_resolved_plan` and read again: the same
+    arrays, phases, integrator and mesh."""
+    import types
+
+    from stand_in_plans import SAVED_PLAN, saved_plan
+
+    from tfcontact.plan_format.resolved import load_resolved_plan, save_resolved_plan
+
+    saved = load_resolved_plan(SAVED_PLAN)
+    assert [p.mode for p in saved.phases] == ["stick", "flight"] * 3 + ["stick"]
+    assert saved.phases[-1].end == saved.t[-1] == pytest.approx(2.5)
+    plan = saved_plan(types.SimpleNamespace(local_defects=saved.local_defects))
+    again = load_resolved_plan(save_resolved_plan(plan, tmp_path / "plan.npz"))
+    for name in ("t", "x", "u", "boundary_states", "local_defects"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(saved, name))
+    assert again.phases == saved.phases and again.integrator == "radau"
+    assert again.substeps == saved.substeps
+
+
+def test_a_node_file_that_is_not_one_is_refused_with_the_fix(tmp_path):
+    from tfcontact.plan_format.resolved import load_resolved_plan
+
+    np.savez(tmp_path / "trajectory.npz", t=np.zeros(3), q=np.zeros((3, 2)))
+    with pytest.raises(TrajectoryFileError, match="lacks x, u, boundary.*load_trajectory"):
+        load_resolved_plan(tmp_path / "trajectory.npz")
+    (tmp_path / "text.npz").write_text("not a zip")
+    with pytest.raises(TrajectoryFileError, match="not a readable node file"):
+        load_resolved_plan(tmp_path / "text.npz")
+    arrays = {"t": np.zeros(3), "x": np.zeros((3, 8)), "u": np.zeros((2, 2)),
+              "boundary": np.zeros((2, 8)), "phase_modes": np.array(["stick"]),
+              "phase_starts": np.zeros(1), "local_defects": np.zeros(2),
+              "integrator": "rk4", "substeps": np.ones(2, dtype=int)}
+    np.savez(tmp_path / "short.npz", **arrays)
+    with pytest.raises(TrajectoryFileError, match="do not fit together"):
+        load_resolved_plan(tmp_path / "short.npz")

@@ -38,12 +38,9 @@ iterations to the 3000 cap. It handles one frictional planar contact (the monope
 
 from __future__ import annotations
 
-import ctypes
 import itertools
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -51,6 +48,7 @@ import numpy as np
 from tfcontact import interrupt
 from tfcontact.errors import InvalidInput, TfcontactError, positive_int
 from tfcontact.fesd.tableau import RadauIIA
+from tfcontact.native import blas_threads
 from tfcontact.ocp.contact import ContactProblem, ContactResult
 from tfcontact.verify import (
     LOCAL_DEFECT_IMPACT_WINDOW,
@@ -76,40 +74,6 @@ through slip: straight from stick, lambda_n = 0 with the cone row at the same no
 force lambda_t = 0 too, and the exact dynamics do not give that. Straight from stick it
 lifts off at a control jump (a grid point k T / N): the new control's free normal
 acceleration n^T M^-1 f + (dn/dt)^T v >= 0 opens the contact."""
-
-
-def casadi_openblas():
-    """CasADi's bundled OpenBLAS (MUMPS's BLAS inside IPOPT), or None if there is none."""
-    for name in ("libcasadi-tp-openblas.so.0", "libcasadi-tp-openblas.so"):
-        path = Path(ca.__file__).parent / name
-        if path.exists():
-            try:
-                lib = ctypes.CDLL(str(path))
-                return lib if hasattr(lib, "openblas_set_num_threads") else None
-            except OSError:
-                return None
-    return None
-
-
-@contextmanager
-def blas_threads(n: int | None):
-    """Run IPOPT's linear algebra (MUMPS on CasADi's OpenBLAS) with n threads, then restore.
-
-    The re-solves' IPOPT paths depend on the rounding, and the rounding on the BLAS thread
-    count: the reduced monoped's first re-solve takes 458 iterations with 2 threads and
-    2284 with 1 (OPENBLAS_NUM_THREADS=1), and the chain then stops at the iteration cap.
-    Fixing the count makes a run follow the measured path on machines of the same kind.
-    None: leave it as it is."""
-    lib = None if n is None else casadi_openblas()
-    if lib is None:
-        yield
-        return
-    before = int(lib.openblas_get_num_threads())
-    lib.openblas_set_num_threads(int(n))
-    try:
-        yield
-    finally:
-        lib.openblas_set_num_threads(before)
 
 
 @dataclass(frozen=True)
@@ -139,7 +103,8 @@ class PolishOptions:
         switch_margin: phase switches keep this fraction of a control interval from its
             boundaries (no zero-length pieces).
         tol, max_iter: IPOPT's.
-        blas_threads: threads of IPOPT's BLAS during the solve (`blas_threads`; None: as
+        blas_threads: threads of IPOPT's BLAS during the solve (`tfcontact.native.
+            blas_threads`, restored after; None: as
             set). The measured chains ran with 2 (the default on a 2-core machine).
         lift_offs_at_control_jumps: `contact_phases` moves each lift-off straight from
             stick to the nearest control jump k T / N, where the re-solve can model it

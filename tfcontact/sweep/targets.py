@@ -195,9 +195,9 @@ def sweep_target(plan: str) -> SweepTarget:
                                f"{', '.join(sweepable)}, or a task file PATH.toml") from None
         return PlanTarget(plan, found.tasks)
     if PLANS[plan].build is None:
-        raise InvalidInput(f"plan `{plan}` solves itself in its own chain, with no single "
-                           f"contact problem whose start a sweep could perturb; sweepable "
-                           f"plans: {', '.join(sweepable)}")
+        raise InvalidInput(f"plan `{plan}` does not start with a discovery, so it has no "
+                           f"single contact problem whose start a sweep could perturb; "
+                           f"sweepable plans: {', '.join(sweepable)}")
     if len(PLANS[plan].stages) > 1:
         raise InvalidInput(f"plan `{plan}` has stages after its discovery "
                            f"({', '.join(s.name for s in PLANS[plan].stages[1:])}) that a "

@@ -1,0 +1,315 @@
+"""The one pipeline of every plan: a plan is data (`Plan`: tasks and stages), each stage
+gets the outcome of the stage before and returns its own (`PlanOutcome`); `run_plan`
+(`tfcontact.scenes.plans`) runs them in turn and writes the last outcome.
+
+Stages: `Discover` finds the contact sequence with the time-freezing homotopy;
+`ExactResolve` re-solves along a contact sequence exactly, level after level
+(`tfcontact.ocp.chain`), from where its `ResolveStart` says (`FoundSequence`: the
+discovery's sequence; `PreviousPlan`: the exact plan before; a scene's own rule, e.g. the
+monoped's hop tiled on a schedule). A scene adds its own starts and levels as data, not a
+pipeline of its own.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from tfcontact.errors import InvalidInput
+from tfcontact.ocp.chain import ChainStep, ResolveChain, ResolveLevel, resolve_chain
+from tfcontact.ocp.polish import Phase, PolishedPlan, PolishOptions, contact_phases
+
+if TYPE_CHECKING:
+    from tfcontact.ocp.contact import ContactProblem, ContactResult, ContactSolverOptions
+    from tfcontact.ocp.goals import TaskReport
+    from tfcontact.plan_format import Trajectory
+    from tfcontact.robot import Robot, Terrain
+
+
+@dataclass(frozen=True)
+class PlanSetup:
+    """What a plan needs to run: the robot, problem, solver options and the scene stored
+    in the trajectory's sidecar (its ground and obstacles); `terrain`: the
+    `tfcontact.robot.Terrain` the contacts' gaps model, if one (the trajectory's forces
+    then follow its normal along the plan), else None (one plane: the scene's normal).
+    `options`: the discovery's `ContactSolverOptions` (None for a setup only re-solved
+    exactly)."""
+
+    robot: Robot
+    problem: ContactProblem
+    options: ContactSolverOptions | None
+    scene: dict
+    terrain: Terrain | None = None
+
+
+@dataclass(frozen=True)
+class PlanOutcome:
+    """What a stage returns to `run_plan`: the trajectory to write, the robot for the
+    replay, the status, a summary text and files it wrote itself; for the stage after it,
+    the problem it solved (`setup`), a discovery's `ContactResult` (`result`) or the exact
+    re-solves' `ResolveChain` (`chain`: its plan's node file is written as `plan.npz`)."""
+
+    trajectory: Trajectory | None
+    robot: Robot | None
+    status: str
+    success: bool
+    summary: str
+    files: tuple[Path, ...] = ()
+    task: dict | None = None  # the goals measured (`TaskReport.to_dict()`), if stated
+    result: ContactResult | None = None
+    setup: PlanSetup | None = None
+    chain: ResolveChain | None = None
+
+
+@dataclass(frozen=True)
+class StageInput:
+    """What a stage of a plan's pipeline gets: the plan and task names, the staging
+    folder, the user's settings and the outcome of the stage before (None first)."""
+
+    plan: str
+    task: str
+    out: Path
+    verbose: bool
+    attempts: int | None
+    previous: PlanOutcome | None
+
+
+class Stage(ABC):
+    """One step of a plan's pipeline (`Plan.stages`), run in turn by `run_plan`; a stage
+    whose `tasks` is a tuple runs only for those tasks of its plan (None: for all)."""
+
+    name: str
+    tasks: tuple[str, ...] | None = None
+
+    @abstractmethod
+    def run(self, given: StageInput) -> PlanOutcome:
+        """The stage's outcome (the last stage's is written)."""
+
+
+@dataclass(frozen=True)
+class Discover(Stage):
+    """Find the contact sequence: the time-freezing homotopy (`solve_contact`, with the
+    plan's attempts) on the problem `build(task)` states, verified, goals checked."""
+
+    build: Callable[[str | None], PlanSetup]
+    name: str = "discover"
+    tasks: tuple[str, ...] | None = None
+
+    def run(self, given: StageInput) -> PlanOutcome:
+        from tfcontact.ocp.contact import solve_contact
+        from tfcontact.plan_format import terrain_directions, trajectory_from_result
+
+        setup = self.build(given.task)
+        robot, problem, options = setup.robot, setup.problem, setup.options
+        if given.attempts is not None:
+            options = dataclasses.replace(options, attempts=given.attempts)
+        if given.verbose:
+            print(f"plan {given.plan} ({given.task}): {robot.model.name}, nq = {robot.nq}, "
+                  f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
+        result = solve_contact(problem, options, verbose=given.verbose)
+        directions = (None if setup.terrain is None
+                      else terrain_directions(robot, setup.terrain))
+        trajectory = trajectory_from_result(result, robot.spec, setup.scene,
+                                            directions=directions,
+                                            task=result.task.to_dict())
+        return PlanOutcome(trajectory, robot, result.status, result.success,
+                           result.summary(), task=result.task.to_dict(), result=result,
+                           setup=setup)
+
+
+@dataclass(frozen=True)
+class Start:
+    """Where a chain of exact re-solves starts: its guess (a relaxed plan, (t, x, u) or
+    None), the contact sequence to follow, the solves made on the way (`ChainStep`s) and
+    how many of the chain's first levels they replace."""
+
+    guess: ContactResult | tuple[np.ndarray, np.ndarray, np.ndarray] | None
+    phases: tuple[Phase, ...]
+    steps: tuple[ChainStep, ...] = ()
+    skip_levels: int = 0
+
+
+class NoStart(Exception):  # noqa: N818 (a stage's verdict, not a program error)
+    """A `ResolveStart` found nothing to follow; its message says why."""
+
+
+class ResolveStart(ABC):
+    """How an `ExactResolve` stage starts from the outcome before it (a strategy)."""
+
+    @abstractmethod
+    def begin(self, given: StageInput, levels: Sequence[ResolveLevel]) -> Start:
+        """The chain's start. Raises `NoStart` when the outcome before gives none;
+        `InvalidInput` when the stage before is of the wrong kind."""
+
+
+def discovery_step(result: ContactResult) -> ChainStep:
+    history = result.ocp.mpcc_result.history
+    return ChainStep("time-freezing homotopy", history[-1].ipopt_status if history else "none",
+                     result.ocp.total_iterations, float(result.timings.get("total", np.nan)),
+                     float(result.ocp.cost),
+                     result.status)
+
+
+def discovered(given: StageInput) -> ContactResult:
+    """The discovery before a stage (its `ContactResult`).
+
+    Raises:
+        InvalidInput: no discovery stage before it."""
+    found = given.previous
+    if found is None or found.result is None:
+        raise InvalidInput("an exact re-solve needs a discovery stage before it "
+                           "(Plan stages (Discover(...), ExactResolve()))")
+    return found.result
+
+
+@dataclass(frozen=True)
+class FoundSequence(ResolveStart):
+    """Follow the contact sequence the discovery found (`contact_phases` with `options`;
+    default: lift-offs at the nearest control jump), its relaxed plan the guess."""
+
+    options: PolishOptions | None = None
+
+    def begin(self, given: StageInput, levels: Sequence[ResolveLevel]) -> Start:
+        result = discovered(given)
+        if not result.ocp.success:
+            raise NoStart(f"the discovery's homotopy did not converge ({result.status})")
+        options = self.options or PolishOptions(lift_offs_at_control_jumps=True)
+        return Start(result, contact_phases(result, options), (discovery_step(result),))
+
+
+@dataclass(frozen=True)
+class PreviousPlan(ResolveStart):
+    """Go on from the exact re-solves before (a verified plan), along its sequence."""
+
+    def begin(self, given: StageInput, levels: Sequence[ResolveLevel]) -> Start:
+        chain = None if given.previous is None else given.previous.chain
+        if chain is None:
+            raise InvalidInput("this re-solve goes on from an exact re-solve before it")
+        if not chain.success:
+            raise NoStart(f"the plan before is not verified ({chain.status})")
+        plan = chain.plan
+        return Start((plan.t, plan.x, plan.u), plan.phases, chain.steps)
+
+
+@dataclass(frozen=True)
+class ExactResolve(Stage):
+    """Re-solve the plan before exactly along a contact sequence (`tfcontact.ocp.chain`:
+    the hybrid system's own modes, impacts at the found times, no time-freezing
+    relaxation; level after level, each warm started from the last), verified against the
+    exact-impact reference, the goals and path constraints checked at its nodes. One
+    planar frictional contact (`polish` refuses others).
+
+    Args:
+        options: `PolishOptions` of the default single level; default: lift-offs at the
+            nearest control jump.
+        levels: the chain's levels for the stage's setup (default: one level, `options`).
+        start: where the chain starts (default `FoundSequence`: the discovery's sequence).
+        setup: the problem to re-solve for a task (default: the stage before's).
+    """
+
+    options: PolishOptions | None = None
+    levels: Callable[[PlanSetup], Sequence[ResolveLevel]] | None = None
+    start: ResolveStart | None = None
+    setup: Callable[[str], PlanSetup] | None = None
+    name: str = "exact re-solve"
+    tasks: tuple[str, ...] | None = None
+
+    def run(self, given: StageInput) -> PlanOutcome:
+        found = given.previous
+        start_with = self.start or FoundSequence(self.options)
+        if found is None or found.setup is None:
+            discovered(given)  # names the missing discovery
+            raise InvalidInput(f"stage `{self.name}` needs a stage before it")
+        setup = self.setup(given.task) if self.setup else found.setup
+        options = self.options or PolishOptions(lift_offs_at_control_jumps=True)
+        levels = (tuple(self.levels(setup)) if self.levels else
+                  (ResolveLevel(self.name, setup.problem, options),))
+        try:
+            start = start_with.begin(given, levels)
+        except NoStart as why:  # nothing to follow: the stage before is the outcome
+            return dataclasses.replace(
+                found, status=found.status if not found.success else "chain_failed",
+                success=False, summary=f"{found.summary}\n{self.name} not started: {why}")
+        chain = resolve_chain(levels[start.skip_levels:], start.phases, start.guess,
+                              steps=start.steps, verbose=given.verbose)
+        return resolved_outcome(chain, setup, found)
+
+
+def resolved_outcome(chain: ResolveChain, setup: PlanSetup, found: PlanOutcome | None
+                     ) -> PlanOutcome:
+    """The outcome of a chain of exact re-solves: its trajectory (the plan's nodes as
+    samples), the goals measured on it, the status and summary."""
+    from tfcontact.plan_format.adapters import trajectory_from_polished
+
+    discovery = ("" if found is None or found.result is None
+                 else f"discovery: {found.result.status}\n")
+    if chain.plan is None:
+        return PlanOutcome(None, setup.robot, chain.status, False,
+                           discovery + chain.summary(), setup=setup, chain=chain)
+    plan, problem = chain.plan, chain.problem
+    task = _polished_task(plan, problem)
+    status = chain.status if not chain.success else \
+        ("converged" if task.passed else task.status)
+    summary = f"{discovery}{chain.summary()}\n{task.summary()}"
+    solver = {"status": status, "message": chain.message, "objective": plan.cost,
+              "wall_time": chain.wall_time, "path_violation": chain.path_violation,
+              "phases": [dataclasses.asdict(p) for p in plan.phases],
+              "steps": [dataclasses.asdict(step) for step in chain.steps],
+              "method": "exact re-solve along the contact sequence (tfcontact.ocp.polish): "
+                        + ("Radau IIA collocation" if plan.integrator == "radau"
+                           else "RK4 multiple shooting") + " on the fixed control grid",
+              "steps_per_interval": list(plan.substeps)}
+    trajectory = trajectory_from_polished(plan, problem.system.cls, setup.robot.spec,
+                                          setup.scene, solver=solver, task=task.to_dict())
+    return PlanOutcome(trajectory, setup.robot, status, chain.success and task.passed,
+                       summary, task=task.to_dict(), setup=setup, chain=chain)
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A named robot plan as data: its tasks and the stages `run_plan` runs in turn (e.g.
+    discover the contact sequence, then re-solve exactly along it)."""
+
+    name: str
+    summary: str
+    tasks: tuple[str, ...]
+    stages: tuple[Stage, ...]
+
+    def __post_init__(self) -> None:
+        if not self.stages or not all(isinstance(s, Stage) for s in self.stages):
+            raise InvalidInput(f"plan `{self.name}` needs stages (Discover, ExactResolve, "
+                               "...)")
+        for stage in self.stages:
+            unknown = set(stage.tasks or ()) - set(self.tasks)
+            if unknown:
+                raise InvalidInput(f"plan `{self.name}`: stage `{stage.name}` names tasks "
+                                   f"{sorted(unknown)} the plan does not have ({self.tasks})")
+
+    @property
+    def build(self) -> Callable[[str | None], PlanSetup] | None:
+        """The problem builder of a plan that starts with a `Discover` (sweeps perturb
+        its start), else None."""
+        first = self.stages[0]
+        return first.build if isinstance(first, Discover) else None
+
+    def stages_for(self, task: str) -> tuple[Stage, ...]:
+        """The stages that run for `task`, in order."""
+        return tuple(s for s in self.stages if s.tasks is None or task in s.tasks)
+
+
+def _polished_task(plan: PolishedPlan, problem: ContactProblem) -> TaskReport:
+    """The problem's goals measured on an exact re-solve's nodes (`TaskReport`)."""
+    from tfcontact.ocp.goals import Motion, check_goals
+    from tfcontact.ocp.polish import node_samples
+
+    cls = problem.system.cls
+    gaps = node_samples(plan, cls)["gap"].reshape(len(plan.t), -1)
+    motion = Motion(t=np.asarray(plan.t), q=np.asarray(plan.x)[:, :cls.n_q], gaps=gaps,
+                    names=cls.q_names)
+    return check_goals(problem.goals, motion)
