@@ -13,6 +13,7 @@ from two_contact_box import pushed_box_problem, solved_plan
 from tfcontact.errors import IncompatibleOptions, InvalidInput
 from tfcontact.verify import (
     AutoReplay,
+    EvaluationBudget,
     ExactReplay,
     FesdReplay,
     MultiContactOptions,
@@ -97,6 +98,45 @@ def test_auto_replay_falls_back_to_fesd_when_the_multicontact_simulation_stops(p
         in auto.notes[0]
     assert auto.notes[0].endswith("; FESD used")
     assert np.all(np.isinf(auto.local_defects))
+
+
+def test_the_check_stops_when_its_evaluation_budget_is_used_up(pushed_box):
+    """One budget for the open-loop replay and every local-defect restart. The open-loop
+    replay decides (the local defects are diagnostics here): with 300 evaluations it runs,
+    the plan passes, and the restarts after the budget is used up are not run (inf), the
+    notes saying how many; with 50 the open-loop replay itself stops and the plan fails."""
+    full = check_time_freezing_plan(pushed_box, VerifyOptions(replay=MultiContactReplay()))
+    assert full.passed and np.all(np.isfinite(full.local_defects))
+    assert not any("budget" in n for n in full.notes)
+    short = check_time_freezing_plan(pushed_box, VerifyOptions(
+        replay=MultiContactReplay(budget=300)))
+    assert short.passed
+    assert short.end_state_deviation == full.end_state_deviation
+    note = next(n for n in short.notes if "budget" in n)
+    assert note.startswith("the multi-contact reference used up its budget of 300 model "
+                           "evaluations")
+    skipped = int(note.split(": ")[1].split()[0])
+    assert 1 <= skipped < N_INTERVALS
+    assert np.isfinite(short.local_defects[0])  # the first restart ran
+    assert np.isinf(short.local_defects[-skipped:]).all()
+    starved = check_time_freezing_plan(pushed_box, VerifyOptions(
+        replay=MultiContactReplay(budget=50)))
+    assert not starved.passed and starved.end_state_deviation == np.inf
+    assert "with status max_rhs_evaluations: stopped after 50" in starved.notes[0]
+    assert np.isinf(starved.local_defects).all()
+    with pytest.raises(InvalidInput, match="`budget` must be a positive integer"):
+        MultiContactReplay(budget=0)
+
+
+def test_a_budget_caps_each_simulation_at_what_is_left():
+    budget = EvaluationBudget(100)
+    options = MultiContactOptions(max_rhs_evaluations=1000)
+    assert budget.options(options).max_rhs_evaluations == 100
+    budget.spend(70)
+    assert budget.options(options).max_rhs_evaluations == 30 and not budget.exhausted
+    budget.spend(40)
+    assert budget.exhausted and budget.options(options).max_rhs_evaluations == 1
+    assert budget.options(MultiContactOptions(max_rhs_evaluations=10)).max_rhs_evaluations == 1
 
 
 def test_replay_options_are_checked():

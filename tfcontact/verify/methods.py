@@ -37,6 +37,7 @@ from tfcontact.fesd import RadauIIA, Scheme, simulate
 from tfcontact.mpcc import Relaxation, Scholtes
 from tfcontact.timefreezing import ComplementarityLagrangianSystem
 from tfcontact.verify.multicontact import (
+    EvaluationBudget,
     MultiContactOptions,
     MultiContactSimulation,
     multicontact_local_defects,
@@ -123,6 +124,12 @@ class MultiContactReplay(Replay):
         simulation: the simulator's `MultiContactOptions` (default: its defaults); its
             `start_gap_tolerance` is raised to the verification's gap tolerance (a plan's
             state may lie that far inside an obstacle).
+        budget: model evaluations of the whole check, the open-loop replay and every
+            local-defect restart together (`EvaluationBudget`): restarts after it is used
+            up are not run, their defects inf, and the notes say how many. A genuine plan
+            needs far fewer (the pushed two-contact box: about 100 per interval); a plan
+            that chatters would spend the simulator's cap in every restart (a failed
+            solo12 jump: 1e6 evaluations, 83 s, per restart). About 40 s of solo12.
 
     A simulation that stops with a status (Painleve, event cap, budget) is a failed
     replay, not an error: the deviation is inf and the notes give the status and where
@@ -137,11 +144,13 @@ class MultiContactReplay(Replay):
     # with v_n = 3e-7 m/s (the plan's own error) now flies and lands back at its depth
     # (`simulate_multicontact`); it used to chatter at t = 0 and needed 1e-6 m/s here.
     simulation: MultiContactOptions = field(default_factory=MultiContactOptions)
+    budget: int = 500_000
 
     def __post_init__(self) -> None:
         if not isinstance(self.simulation, MultiContactOptions):
             raise InvalidInput(f"`simulation` must be a MultiContactOptions, got "
                                f"{self.simulation!r}")
+        positive_int(self.budget, "budget")
 
     @staticmethod
     def applies_to(cls: ComplementarityLagrangianSystem) -> bool:
@@ -153,19 +162,19 @@ class MultiContactReplay(Replay):
         return replace(self.simulation, start_gap_tolerance=max(
             self.simulation.start_gap_tolerance, gap_tolerance))
 
-    def local_defects(self, plan: TimeFreezingPlan,
-                      gap_tolerance: float) -> tuple[float, ...]:
+    def local_defects(self, plan: TimeFreezingPlan, gap_tolerance: float,
+                      budget: EvaluationBudget | None = None) -> tuple[float, ...]:
         """The plan's local defects with this simulator (`multicontact_local_defects`,
-        cut like `TimeFreezingPlan.local_defects`)."""
+        cut like `TimeFreezingPlan.local_defects`), within `budget` if given."""
         replayed = plan.replayed()
         return multicontact_local_defects(
             replayed, defect_segments(replayed.clocks, ~plan.running), gap_tolerance,
-            self.options(gap_tolerance))
+            self.options(gap_tolerance), budget)
 
-    def simulate(self, plan: TimeFreezingPlan,
-                 gap_tolerance: float) -> MultiContactSimulation:
-        """The open-loop replay of the plan's physical controls from its start to T; a
-        failure is the result's status.
+    def simulate(self, plan: TimeFreezingPlan, gap_tolerance: float,
+                 budget: EvaluationBudget | None = None) -> MultiContactSimulation:
+        """The open-loop replay of the plan's physical controls from its start to T
+        (within `budget` if given); a failure is the result's status.
 
         Raises:
             IncompatibleOptions: a contact with restitution > 0.
@@ -176,8 +185,13 @@ class MultiContactReplay(Replay):
             raise IncompatibleOptions(f"the multi-contact replay models inelastic contacts "
                                       f"only; {elastic} have restitution > 0")
         replayed = plan.replayed()
-        return replay_multicontact(cls, replayed.x0, replayed.clocks, replayed.controls,
-                                   replayed.horizon, options=self.options(gap_tolerance))
+        options = self.options(gap_tolerance)
+        sim = replay_multicontact(cls, replayed.x0, replayed.clocks, replayed.controls,
+                                  replayed.horizon, options=options if budget is None
+                                  else budget.options(options))
+        if budget is not None:
+            budget.spend(sim.n_rhs)
+        return sim
 
     @staticmethod
     def outcome(plan: TimeFreezingPlan, sim: MultiContactSimulation,
@@ -199,10 +213,17 @@ class MultiContactReplay(Replay):
 
     def run(self, plan: TimeFreezingPlan, gap_tolerance: float,
             notes: list[str]) -> ReplayOutcome:
-        sim = self.simulate(plan, gap_tolerance)
-        defects = self.local_defects(plan, gap_tolerance)
+        budget = EvaluationBudget(self.budget)
+        sim = self.simulate(plan, gap_tolerance, budget)
+        defects = self.local_defects(plan, gap_tolerance, budget)
         if not sim.success:
             notes.append(self.stop_note(sim))
+        if budget.skipped:
+            notes.append(f"the multi-contact reference used up its budget of {self.budget} "
+                         f"model evaluations: {budget.skipped} local-defect restarts not run "
+                         "(their defects inf); raise MultiContactReplay(budget=...) if the "
+                         "plan's motion needs more")
+        if not sim.success:
             return ReplayOutcome(math.inf, "event-driven multi-contact reference (stopped)",
                                  local_defects=defects)
         return self.outcome(plan, sim, defects)
