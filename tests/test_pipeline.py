@@ -139,3 +139,31 @@ def test_a_resolve_with_nothing_to_follow_keeps_the_outcome_before(tmp_path):
         assert outcome.trajectory == "trajectory"
         assert outcome.summary == "discovered\nexact re-solve not started: the hop did not " \
                                   "lift off"
+
+
+def test_a_re_solve_goes_on_from_the_verified_plan_before(tmp_path):
+    """`PreviousPlan`: the exact plan before is the guess and its phases the sequence, its
+    steps kept; a plan that failed gives no start, and without a chain before it the stage
+    is misplaced."""
+    import types
+
+    from stand_in_plans import stand_in_plan
+
+    from tfcontact.ocp.chain import ChainStep, ResolveChain
+    from tfcontact.scenes.pipeline import NoStart, PreviousPlan
+
+    plan = stand_in_plan("Solve_Succeeded", 1.0, shift=0.5)
+    steps = (ChainStep.of("first", plan, 1.0),)
+
+    def given(chain):
+        before = PlanOutcome(None, None, "converged", True, "", chain=chain)
+        return StageInput("p", "t", tmp_path, False, None, before)
+
+    start = PreviousPlan().begin(given(ResolveChain(plan, None, steps, 0.0, 1.0)), ())
+    assert start.guess[1] is plan.x and start.phases == plan.phases and start.steps == steps
+    failed = stand_in_plan("Solve_Succeeded", 1.0, verification=types.SimpleNamespace(
+        passed=False, summary=str))
+    with pytest.raises(NoStart, match="the plan before is not verified \\(verification_failed"):
+        PreviousPlan().begin(given(ResolveChain(failed, None, steps, 0.0, 1.0)), ())
+    with pytest.raises(InvalidInput, match="goes on from an exact re-solve before it"):
+        PreviousPlan().begin(given(None), ())
