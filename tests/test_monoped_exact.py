@@ -335,3 +335,27 @@ def test_the_scene_draws_the_holes_the_problem_keeps_out():
     scene = monoped_problem(REDUCED_TASK).scene()
     np.testing.assert_array_equal(scene["holes"][0]["profile"],
                                   hole_profile(REDUCED_TASK, 0.5))
+
+
+def test_a_saved_plan_is_checked_again_from_the_command_line(tmp_path):
+    """`python -m tfcontact.scenes.monoped_exact PLAN.npz` (the README's command): exit 0 on
+    the saved plan, 1 on the plan with one torque moved, and no warning on the way (the
+    scene module loads without `tfcontact.scenes` importing it first)."""
+    import subprocess
+    import sys
+
+    def check(path):
+        return subprocess.run([sys.executable, "-W", "error", "-m",
+                               "tfcontact.scenes.monoped_exact", str(path)],
+                              capture_output=True, text=True, timeout=300)
+
+    passed = check(SAVED_PLAN)
+    assert passed.returncode == 0, passed.stderr
+    assert "verification PASSED" in passed.stdout and not passed.stderr
+    saved = dict(np.load(SAVED_PLAN))
+    saved["u"] = saved["u"].copy()
+    saved["u"][4, 0] += 0.5
+    moved = tmp_path / "moved.npz"
+    np.savez(moved, **saved)
+    failed = check(moved)
+    assert failed.returncode == 1 and "verification FAILED" in failed.stdout

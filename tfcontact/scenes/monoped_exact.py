@@ -45,7 +45,7 @@ import numpy as np
 
 from tfcontact.errors import InvalidInput
 from tfcontact.native import return_memory
-from tfcontact.ocp.chain import ChainStep, ResolveLevel, refine_by_defects
+from tfcontact.ocp.chain import PATH_TOLERANCE, ChainStep, ResolveLevel, refine_by_defects
 from tfcontact.ocp.contact import ContactProblem
 from tfcontact.ocp.polish import (
     FLIGHT,
@@ -125,8 +125,6 @@ RADAU_CONE_MARGIN = 0.98
 """The Radau re-solves keep the stick forces within 0.98 mu lambda_n: with the full cone
 (1.0) the 12-element plan stuck on the cone's edge in one interval, where the exact replay
 slipped and parted from it by 3.2."""
-HOLE_TOLERANCE = 1e-6
-"""A plan enters a hole if its smallest hole value is below -HOLE_TOLERANCE."""
 
 
 def tiled_guess(hop: PolishedPlan, task: MonopedTask = EXACT_TASK,
@@ -385,4 +383,4 @@ if __name__ == "__main__":  # python -m tfcontact.scenes.monoped_exact PLAN.npz
     checked, hole_value = verify_saved(sys.argv[1])
     print(checked.summary())
     print(f"smallest ellipse value {hole_value:.3g} (>= 0 outside TF-9's holes)")
-    sys.exit(0 if checked.passed and hole_value >= -HOLE_TOLERANCE else 1)
+    sys.exit(0 if checked.passed and hole_value >= -PATH_TOLERANCE else 1)

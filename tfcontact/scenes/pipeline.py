@@ -51,7 +51,7 @@ class PlanSetup:
 @dataclass(frozen=True)
 class PlanOutcome:
     """What a stage returns to `run_plan`: the trajectory to write, the robot for the
-    replay, the status, a summary text and files it wrote itself; for the stage after it,
+    replay, the status and a summary text; for the stage after it,
     the problem it solved (`setup`), a discovery's `ContactResult` (`result`) or the exact
     re-solves' `ResolveChain` (`chain`: its plan's node file is written as `plan.npz`)."""
 
@@ -60,7 +60,6 @@ class PlanOutcome:
     status: str
     success: bool
     summary: str
-    files: tuple[Path, ...] = ()
     task: dict | None = None  # the goals measured (`TaskReport.to_dict()`), if stated
     result: ContactResult | None = None
     setup: PlanSetup | None = None
@@ -135,6 +134,11 @@ class Start:
     skip_levels: int = 0
 
 
+LIFT_OFFS_AT_CONTROL_JUMPS = PolishOptions(lift_offs_at_control_jumps=True)
+"""The exact re-solve's default: `PolishOptions` with each lift-off straight from stick
+moved to the nearest control jump, where the re-solve can model it."""
+
+
 class NoStart(Exception):  # noqa: N818 (a stage's verdict, not a program error)
     """A `ResolveStart` found nothing to follow; its message says why."""
 
@@ -179,7 +183,7 @@ class FoundSequence(ResolveStart):
         result = discovered(given)
         if not result.ocp.success:
             raise NoStart(f"the discovery's homotopy did not converge ({result.status})")
-        options = self.options or PolishOptions(lift_offs_at_control_jumps=True)
+        options = self.options or LIFT_OFFS_AT_CONTROL_JUMPS
         return Start(result, contact_phases(result, options), (discovery_step(result),))
 
 
@@ -222,14 +226,13 @@ class ExactResolve(Stage):
 
     def run(self, given: StageInput) -> PlanOutcome:
         found = given.previous
-        start_with = self.start or FoundSequence(self.options)
         if found is None or found.setup is None:
-            discovered(given)  # names the missing discovery
-            raise InvalidInput(f"stage `{self.name}` needs a stage before it")
+            raise InvalidInput("an exact re-solve needs a discovery stage before it "
+                               "(Plan stages (Discover(...), ExactResolve()))")
+        start_with = self.start or FoundSequence(self.options)
         setup = self.setup(given.task) if self.setup else found.setup
-        options = self.options or PolishOptions(lift_offs_at_control_jumps=True)
-        levels = (tuple(self.levels(setup)) if self.levels else
-                  (ResolveLevel(self.name, setup.problem, options),))
+        levels = (tuple(self.levels(setup)) if self.levels else (ResolveLevel(
+            self.name, setup.problem, self.options or LIFT_OFFS_AT_CONTROL_JUMPS),))
         try:
             start = start_with.begin(given, levels)
         except NoStart as why:  # nothing to follow: the stage before is the outcome

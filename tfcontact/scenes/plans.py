@@ -186,7 +186,7 @@ def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanO
     from tfcontact.plan_format.resolved import save_resolved_plan
     from tfcontact.viz import plot_trajectory, replay
 
-    files = [*outcome.files, *collision_files]
+    files = list(collision_files)
     if outcome.chain is not None and outcome.chain.plan is not None:
         # the exact re-solve's nodes, re-verifiable from disk (`verify_polished`)
         files.append(save_resolved_plan(outcome.chain.plan, out / "plan.npz"))
