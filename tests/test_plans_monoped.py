@@ -260,8 +260,62 @@ def test_an_open_loop_deviation_the_amplification_does_not_explain_fails(standin
     from tfcontact.verify import replay
 
     mp, options, result = standing_plan
-    monkeypatch.setattr(replay, "open_loop_sensitivity", lambda plan, end, kick: kick)
+    monkeypatch.setattr(replay, "open_loop_sensitivity", lambda plan, end, kick, *_: kick)
     v = contact.verify_plan(mp.problem, result.system, result.ocp, result.physical, options)
     assert v.defect_sum < 1e-3 and v.open_loop_amplification == pytest.approx(1.0)
     assert not v.open_loop_unstable and not v.passed
     assert any("does not account for the deviation" in note for note in v.notes)
+
+
+def test_the_multicontact_reference_passes_an_open_loop_unstable_plan_on_its_defects(
+        standing_plan):
+    """The event-driven multi-contact simulator (the legged robots' reference) replays the
+    standing plan and falls over as the exact reference does; its own kicked replays
+    measure the amplification, so the plan passes on its local defects with it too (it
+    used to fail: this replay gave no amplification)."""
+    from dataclasses import replace
+
+    from tfcontact.ocp.contact import verify_plan
+    from tfcontact.verify import MultiContactReplay
+
+    mp, options, result = standing_plan
+    options = replace(options, verify=replace(options.verify, replay=MultiContactReplay()))
+    v = verify_plan(mp.problem, result.system, result.ocp, result.physical, options)
+    assert v.method.startswith("event-driven multi-contact reference")
+    assert v.end_state_deviation > options.verify.end_state_tolerance
+    assert v.defect_sum < 1e-3
+    assert v.open_loop_amplification * v.defect_sum >= v.end_state_deviation
+    assert v.open_loop_unstable and v.passed
+
+
+def test_the_multicontact_reference_fails_a_wrong_interval_and_an_unmeasured_kick(
+        standing_plan, monkeypatch):
+    """With the multi-contact reference as with the exact one: a 5 N m hip torque in
+    interval 5 makes the local defects exceed the tolerance and the plan fails; and a
+    kicked replay that stops (here its budget) measures no amplification, so the plan
+    fails instead of passing on an unmeasured sensitivity."""
+    from dataclasses import replace
+
+    from tfcontact.errors import SolveFailed
+    from tfcontact.ocp.contact import verify_plan
+    from tfcontact.verify import MultiContactReplay
+
+    mp, options, result = standing_plan
+    options = replace(options, verify=replace(options.verify, replay=MultiContactReplay()))
+    u = result.ocp.u.copy()
+    u[4, 0] = 5.0
+    v = verify_plan(mp.problem, result.system, replace(result.ocp, u=u), result.physical,
+                    options)
+    assert np.nanargmax(v.local_defects) == 4
+    assert v.defect_sum > options.verify.end_state_tolerance
+    assert not v.open_loop_unstable and not v.passed
+
+    def stopped(self, plan, gap_tolerance):
+        def end(x0):
+            raise SolveFailed("kicked multi-contact replay stopped: budget")
+        return end
+
+    monkeypatch.setattr(MultiContactReplay, "replay_end", stopped)
+    v = verify_plan(mp.problem, result.system, result.ocp, result.physical, options)
+    assert v.defect_sum < 1e-3 and np.isnan(v.open_loop_amplification)
+    assert not v.open_loop_unstable and not v.passed

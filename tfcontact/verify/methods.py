@@ -8,8 +8,8 @@ Each method is a strategy object of `VerifyOptions.replay`:
   amplification (`end_state_check`). Where it does not apply, verification raises.
 * `MultiContactReplay(simulation=MultiContactOptions())`: the
   event-driven simulator of the original system with several frictional inelastic
-  contacts (`replay_multicontact`), and the local defects with it. Where it does not
-  apply or stops, verification raises.
+  contacts (`replay_multicontact`), and the local defects and the amplification with it.
+  Where it does not apply, verification raises.
 * `FesdReplay(refinement, scheme, relaxation)`: the FESD simulator of the time-freezing
   system on a grid `refinement` times finer with (by default) a higher-order scheme: any
   system, but the same reformulation the plan was computed with.
@@ -30,6 +30,7 @@ import numpy as np
 from tfcontact.errors import (
     IncompatibleOptions,
     InvalidInput,
+    SolveFailed,
     TfcontactError,
     positive_int,
 )
@@ -43,7 +44,7 @@ from tfcontact.verify.multicontact import (
     multicontact_local_defects,
     replay_multicontact,
 )
-from tfcontact.verify.replay import defect_segments, reference_deviation
+from tfcontact.verify.replay import ReplayEnd, defect_segments, reference_deviation
 
 if TYPE_CHECKING:
     from tfcontact.verify.plan import TimeFreezingPlan
@@ -57,14 +58,18 @@ class ReplayOutcome:
         deviation: ||x_plan(T) - x_replay(T)|| (inf norm) [state units]; inf: the replay
             failed.
         method: how the plan was replayed, for `Verification.method`.
-        reference_end: the exact replay's state at T (None: no exact replay).
+        reference_end: the independent replay's state at T (None: no independent
+            replay).
         local_defects: per control interval (`local_defects`); empty: not computed.
+        replay_end: that replay from another start, for the open-loop amplification
+            (`end_state_check`); None: the exact-impact reference's.
     """
 
     deviation: float
     method: str
     reference_end: np.ndarray | None = None
     local_defects: tuple[float, ...] = ()
+    replay_end: ReplayEnd | None = None
 
 
 class Replay(ABC):
@@ -116,9 +121,10 @@ class MultiContactReplay(Replay):
     at each control-interval boundary that holds a physical state,
     `multicontact_local_defects`).
 
-    It gives no open-loop amplification (`end_state_check` kicks the exact reference,
-    which does not take these systems): a plan whose open-loop replay parts from it by more
-    than the tolerance fails, whatever its local defects.
+    An open-loop unstable plan (a biped balancing on its feet) may pass on its local
+    defects as with the exact reference (`end_state_check`): this simulator is the replay
+    kicked for the amplification. A kicked replay that stops (Painleve, event cap, budget)
+    measures nothing, and the check then fails.
 
     Args:
         simulation: the simulator's `MultiContactOptions` (default: its defaults); its
@@ -193,16 +199,32 @@ class MultiContactReplay(Replay):
             budget.spend(sim.n_rhs)
         return sim
 
-    @staticmethod
-    def outcome(plan: TimeFreezingPlan, sim: MultiContactSimulation,
-                defects: tuple[float, ...]) -> ReplayOutcome:
+    def replay_end(self, plan: TimeFreezingPlan, gap_tolerance: float) -> ReplayEnd:
+        """The open-loop replay from another start, each within its own `budget`; one
+        that stops raises `SolveFailed` (its sensitivity is not measured)."""
+        cls = plan.system.cls
+        replayed = plan.replayed()
+        options = self.options(gap_tolerance)
+
+        def end(x0: np.ndarray) -> np.ndarray:
+            budget = EvaluationBudget(self.budget)
+            sim = replay_multicontact(cls, x0, replayed.clocks, replayed.controls,
+                                      replayed.horizon, options=budget.options(options))
+            if not sim.success:
+                raise SolveFailed(f"kicked multi-contact replay stopped: {sim.message}", sim)
+            return sim.final_state()
+        return end
+
+    def outcome(self, plan: TimeFreezingPlan, sim: MultiContactSimulation,
+                defects: tuple[float, ...], gap_tolerance: float) -> ReplayOutcome:
         """The end-state deviation of a successful simulation, named for the report."""
         times = np.round([imp.time for imp in sim.impacts], 4).tolist()
         method = (f"event-driven multi-contact reference (DOP853, contact LCPs, inelastic "
                   f"frictional impacts), {len(times)} impacts at t = {times} s, "
                   f"{len(sim.events)} contact-mode changes")
         return ReplayOutcome(sim.deviation_at(plan.horizon, plan.end_state), method,
-                             local_defects=defects)
+                             reference_end=sim.final_state(), local_defects=defects,
+                             replay_end=self.replay_end(plan, gap_tolerance))
 
     @staticmethod
     def stop_note(sim: MultiContactSimulation) -> str:
@@ -226,7 +248,7 @@ class MultiContactReplay(Replay):
         if not sim.success:
             return ReplayOutcome(math.inf, "event-driven multi-contact reference (stopped)",
                                  local_defects=defects)
-        return self.outcome(plan, sim, defects)
+        return self.outcome(plan, sim, defects, gap_tolerance)
 
 
 @dataclass(frozen=True)
@@ -326,6 +348,6 @@ class AutoReplay(Replay):
             notes.append(f"multi-contact reference rejected the plan ({error}); FESD used")
         else:
             if sim.success:
-                return MultiContactReplay.outcome(plan, sim, defects)
+                return self.multicontact.outcome(plan, sim, defects, gap_tolerance)
             notes.append(MultiContactReplay.stop_note(sim) + "; FESD used")
         return replace(self.fallback.run(plan, gap_tolerance, notes), local_defects=defects)

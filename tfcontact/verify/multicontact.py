@@ -454,6 +454,8 @@ def _contact_lcp(model: _Model, terms: _Terms, contacts: list[int],
     direction. Returns (z split as {contact: (lambda_n, beta, gamma)}, force vector over
     J's columns, contact rates after the forces, solved)."""
     rate0 = terms.free_rate if velocity is None else terms.j.T @ velocity
+    if not contacts:  # every closed contact lifts off (a lone foot's announced lift-off)
+        return {}, np.zeros(model.m), rate0, True
     force_cols, rows, blocks = [], [], []  # blocks: (contact, first var, n_beta)
     for i in contacts:
         e_n = model.unit(model.normal_col(i))

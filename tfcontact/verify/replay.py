@@ -11,6 +11,7 @@ the plan's local errors (`end_state_check`). The plan is given as arrays
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,28 +130,49 @@ def local_defects(plan: ReplayedPlan, segments: list[tuple[int, int]],
     return tuple(float(d) for d in defects)
 
 
+ReplayEnd = Callable[[np.ndarray], "np.ndarray | None"]
+"""A replay of the plan's controls from another start x0 -> its state at T; what
+`end_state_check` kicks. None: the replay stopped (a jam: counted as infinitely
+sensitive); raising `TfcontactError`: it could not be measured (the check then fails)."""
+
+
+def exact_replay_end(plan: ReplayedPlan) -> ReplayEnd:
+    """The exact-impact reference's `ReplayEnd` of `plan`."""
+    def end(x0: np.ndarray) -> np.ndarray | None:
+        try:
+            replayed = plan.replay(x0)
+        except TfcontactError:
+            return None
+        return replayed.x[-1] if replayed.status == "success" else None
+    return end
+
+
 def open_loop_sensitivity(plan: ReplayedPlan, reference_end: np.ndarray,
-                           kick: float) -> float:
+                          kick: float, replay_end: ReplayEnd | None = None) -> float:
     """How far the replay's end state moves when every start velocity moves by +-kick
-    (the larger of the two; inf if a kicked replay stops)."""
+    (the larger of the two; inf if a kicked replay stops, nan if one could not be
+    measured). `replay_end`: the replay that is kicked (default: the exact-impact
+    reference, `exact_replay_end`)."""
+    replay_end = exact_replay_end(plan) if replay_end is None else replay_end
     n_q = plan.cls.n_q
     moved = []
     for sign in (1.0, -1.0):
         x0 = plan.x0.copy()
         x0[n_q:] += sign * kick
         try:
-            kicked = plan.replay(x0)
+            end = replay_end(x0)
         except TfcontactError:
+            return float("nan")
+        if end is None:
             return float("inf")
-        if kicked.status != "success":
-            return float("inf")
-        moved.append(float(np.max(np.abs(kicked.x[-1] - reference_end))))
+        moved.append(float(np.max(np.abs(end - reference_end))))
     return max(moved)
 
 
 def end_state_check(plan: ReplayedPlan, tolerance: float, deviation: float,
                      local_defects: tuple[float, ...], reference_end: np.ndarray | None,
-                     notes: list[str]) -> tuple[bool, float, float]:
+                     notes: list[str], replay_end: ReplayEnd | None = None
+                     ) -> tuple[bool, float, float]:
     """(passed, sum of the local defects, open-loop amplification) of the end-state check.
 
     The open-loop replay from x0 passes within `tolerance`. Otherwise the plan still
@@ -158,7 +180,8 @@ def end_state_check(plan: ReplayedPlan, tolerance: float, deviation: float,
     defects sum to within the tolerance (the replay could end at most that far away if
     the dynamics did not amplify errors), and the replay's measured sensitivity to a kick
     of its start velocities (end moved / kick), times the defects' sum, reaches the
-    deviation.
+    deviation. `replay_end` is the replay kicked (default: the exact-impact reference);
+    `reference_end` its end from the plan's start (None: no replay to kick).
     """
     tol = tolerance
     defects = np.asarray(local_defects, dtype=float)
@@ -169,7 +192,7 @@ def end_state_check(plan: ReplayedPlan, tolerance: float, deviation: float,
     if reference_end is None or not defect_sum <= tol:
         return False, defect_sum, float("nan")
     kick = SENSITIVITY_KICK * tol
-    sensitivity = open_loop_sensitivity(plan, reference_end, kick)
+    sensitivity = open_loop_sensitivity(plan, reference_end, kick, replay_end)
     amplification = sensitivity / kick
     explained = amplification * defect_sum >= deviation
     notes.append(
