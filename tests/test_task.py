@@ -263,6 +263,22 @@ def test_a_task_sets_the_finite_elements_per_interval(task_file):
         load_task(_edited(path, "finite_elements = 2", "finite_elements = 0"))
 
 
+def test_a_task_chooses_ipopts_barrier_update(task_file):
+    """`barrier` sets IPOPT's `mu_strategy` of every NLP over the preset's (the default
+    preset's is monotone), keeping the preset's other IPOPT options; an unknown update is
+    refused by name."""
+    from tfcontact.task import SOLVER_PRESETS
+
+    preset = SOLVER_PRESETS[load_task(task_file).solver]().nlp.options
+    assert build_task(load_task(task_file)).options.nlp.options == preset
+    assert preset["mu_strategy"] == "monotone"
+    path = _edited(task_file, "n_intervals = 20", 'n_intervals = 20\nbarrier = "adaptive"')
+    options = build_task(load_task(path)).options.nlp.options
+    assert options == {**preset, "mu_strategy": "adaptive"}
+    with pytest.raises(InvalidInput, match="`barrier` must be one of adaptive, monotone"):
+        load_task(_edited(path, '"adaptive"', '"quality"'))
+
+
 def test_the_quadruped_jump_task_builds_solo12_with_four_3d_feet():
     """`quadruped-jump`: solo12 on a floating base (6 + 8 coordinates with HAA locked),
     four feet each with two tangents and the task's stick speed, standing on the ground at

@@ -186,6 +186,9 @@ def build_task(task: Task) -> TaskSetup:
             options.homotopy, tolerance=task.complementarity_tolerance))
     if task.finite_elements is not None:
         options = dataclasses.replace(options, n_finite_elements=task.finite_elements)
+    if task.barrier is not None:
+        options = dataclasses.replace(options, nlp=dataclasses.replace(
+            options.nlp, options={**options.nlp.options, "mu_strategy": task.barrier}))
     scene = {"terrain": task.terrain.to_dict()}
     return TaskSetup(task, robot, problem, options, scene, ground)
 

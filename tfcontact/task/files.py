@@ -69,7 +69,8 @@ SHIPPED = Path(__file__).resolve().parent / "shipped"
 _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "start",
         "actuated", "effort", "bounds", "terrain", "waypoints", "goals", "costs", "solver",
         "guess", "a_n", "gap_scale", "exact_resolve",
-        "complementarity_tolerance", "finite_elements", "friction_model", "periodic"}
+        "complementarity_tolerance", "finite_elements", "friction_model", "periodic",
+        "barrier"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "eps_t"}
@@ -156,6 +157,7 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         complementarity_tolerance=top.get("complementarity_tolerance"),
         finite_elements=top.get("finite_elements"),
         friction_model=top.get("friction_model", "cone"),
+        barrier=top.get("barrier"),
         periodic=_listed(top.get("periodic", ()), "periodic"),
     )
 

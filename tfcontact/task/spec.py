@@ -25,6 +25,8 @@ GUESSES = ("start", "reference")
 FRICTION_MODELS: dict[str, type[SpatialFriction]] = {"cone": SmoothedCone,
                                                      "pyramid": InscribedPyramid}
 """`Task.friction_model` -> the `Inelastic(friction=...)` strategy it builds."""
+BARRIERS = ("adaptive", "monotone")
+"""IPOPT's barrier parameter updates a task can ask for (`Task.barrier`)."""
 
 
 def finite(value: object, where: str, *, low: float | None = None, strict: bool = False,
@@ -354,6 +356,12 @@ class Task:
             diagonals).
         finite_elements: FESD's finite elements per control interval (default: the
             preset's), the resolution at which lift-offs and touch-downs are located.
+        barrier: IPOPT's update of the barrier parameter in every NLP, "adaptive" or
+            "monotone" (`mu_strategy`; default: the preset's). Which one converges
+            depends on the problem, measured: the two-foot bolt walk's last NLP reached
+            IPOPT's cap with the fast preset's adaptive update and converged with the
+            monotone one, while hopper-step and hopper-platform then failed
+            (benchmarks/legged.md).
         exact_resolve: after the discovery, re-solve the plan exactly along the contact
             sequence it found (`tfcontact.ocp.polish`: no relaxation, impacts at the found
             times; one planar frictional contact), so that the written plan is the exact
@@ -384,6 +392,7 @@ class Task:
     complementarity_tolerance: float | None = None
     finite_elements: int | None = None
     friction_model: str = "cone"
+    barrier: str | None = None
     exact_resolve: bool = False
     description: str = ""
 
@@ -461,6 +470,9 @@ class Task:
         if self.finite_elements is not None:
             object.__setattr__(self, "finite_elements",
                                positive_int(self.finite_elements, "finite_elements"))
+        if self.barrier is not None and self.barrier not in BARRIERS:
+            raise InvalidInput(f"`barrier` must be one of {', '.join(BARRIERS)}, got "
+                               f"{self.barrier!r}")
         if not isinstance(self.exact_resolve, bool):
             raise InvalidInput(f"`exact_resolve` must be true or false, got "
                                f"{self.exact_resolve!r}")
