@@ -303,6 +303,33 @@ def test_the_quadruped_jump_task_builds_solo12_with_four_3d_feet():
     assert setup.options.n_finite_elements == 2
 
 
+def test_the_biped_walk_task_builds_bolt_with_two_feet_in_the_plane():
+    """`biped-walk`: bolt on a planar base (x, z, pitch + hips and knees with HAA locked),
+    two feet with one tangent each standing on the ground at the start (Pinocchio's foot
+    heights), a no-slip row per foot, the monotone barrier over the fast preset, and two
+    lift-offs asked of each foot. Its solve (about 100 s, not yet a plan:
+    benchmarks/legged.md) is not run here."""
+    import pinocchio as pin
+
+    from tfcontact.ocp.goals import LiftOffs
+
+    setup = build_task(load_task(shipped_tasks()["biped-walk"]))
+    cls = setup.problem.system.cls
+    assert cls.q_names == ("x", "z", "pitch", "FL_HFE", "FL_KFE", "FR_HFE", "FR_KFE")
+    assert [c.tangents.shape[1] for c in cls.contacts] == [1, 1]
+    assert {c.mu for c in cls.contacts} == {0.7}
+    model, data = setup.robot.model, setup.robot.data
+    pin.framesForwardKinematics(model, data, setup.problem.q0)
+    for contact in cls.contacts:
+        foot = data.oMf[model.getFrameId(contact.name)].translation[2]
+        assert foot - 0.01 == pytest.approx(0.0, abs=1e-5)
+    assert setup.options.nlp.options["mu_strategy"] == "monotone"
+    assert setup.options.nlp.intermediate_tol == SOLVER_PRESETS["fast"]().nlp.intermediate_tol
+    assert setup.problem.path is not None and setup.problem.path.expression.numel() == 2
+    assert LiftOffs(0, 2, 0.05) in setup.problem.goals
+    assert LiftOffs(1, 2, 0.05) in setup.problem.goals
+
+
 def test_validation_of_the_dataclasses():
     with pytest.raises(InvalidInput, match="restitution` must lie in"):
         ContactEntry("foot", 0.02, restitution=1.5)
