@@ -306,8 +306,9 @@ def test_the_quadruped_jump_task_builds_solo12_with_four_3d_feet():
 def test_the_biped_walk_task_builds_bolt_with_two_feet_in_the_plane():
     """`biped-walk`: bolt on a planar base (x, z, pitch + hips and knees with HAA locked),
     two feet with one tangent each standing on the ground at the start (Pinocchio's foot
-    heights), a no-slip row per foot, the monotone barrier over the fast preset, and two
-    lift-offs asked of each foot. Its solve (about 100 s, not yet a plan:
+    heights, spheres of the foot meshes' 16 mm), a no-slip row per foot, the monotone
+    barrier over the fast preset, the gap scale of its elements (60), and two
+    lift-offs asked of each foot. Its solve (about 80 s, not yet a plan:
     benchmarks/legged.md) is not run here."""
     import pinocchio as pin
 
@@ -322,7 +323,8 @@ def test_the_biped_walk_task_builds_bolt_with_two_feet_in_the_plane():
     pin.framesForwardKinematics(model, data, setup.problem.q0)
     for contact in cls.contacts:
         foot = data.oMf[model.getFrameId(contact.name)].translation[2]
-        assert foot - 0.01 == pytest.approx(0.0, abs=1e-5)
+        assert foot - 0.016 == pytest.approx(0.0, abs=1e-5)  # the foot mesh's radius
+    assert dict(setup.problem.system.info)["gap_scale"] == 60.0
     assert setup.options.nlp.options["mu_strategy"] == "monotone"
     assert setup.options.nlp.intermediate_tol == SOLVER_PRESETS["fast"]().nlp.intermediate_tol
     assert setup.problem.path is not None and setup.problem.path.expression.numel() == 2
