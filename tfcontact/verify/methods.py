@@ -178,9 +178,10 @@ class MultiContactReplay(Replay):
             self.options(gap_tolerance), budget)
 
     def simulate(self, plan: TimeFreezingPlan, gap_tolerance: float,
-                 budget: EvaluationBudget | None = None) -> MultiContactSimulation:
-        """The open-loop replay of the plan's physical controls from its start to T
-        (within `budget` if given); a failure is the result's status.
+                 budget: EvaluationBudget | None = None,
+                 x0: np.ndarray | None = None) -> MultiContactSimulation:
+        """The open-loop replay of the plan's physical controls from its start (or `x0`)
+        to T (within `budget` if given); a failure is the result's status.
 
         Raises:
             IncompatibleOptions: a contact with restitution > 0.
@@ -192,8 +193,9 @@ class MultiContactReplay(Replay):
                                       f"only; {elastic} have restitution > 0")
         replayed = plan.replayed()
         options = self.options(gap_tolerance)
-        sim = replay_multicontact(cls, replayed.x0, replayed.clocks, replayed.controls,
-                                  replayed.horizon, options=options if budget is None
+        sim = replay_multicontact(cls, replayed.x0 if x0 is None else x0, replayed.clocks,
+                                  replayed.controls, replayed.horizon,
+                                  options=options if budget is None
                                   else budget.options(options))
         if budget is not None:
             budget.spend(sim.n_rhs)
@@ -202,14 +204,8 @@ class MultiContactReplay(Replay):
     def replay_end(self, plan: TimeFreezingPlan, gap_tolerance: float) -> ReplayEnd:
         """The open-loop replay from another start, each within its own `budget`; one
         that stops raises `SolveFailed` (its sensitivity is not measured)."""
-        cls = plan.system.cls
-        replayed = plan.replayed()
-        options = self.options(gap_tolerance)
-
         def end(x0: np.ndarray) -> np.ndarray:
-            budget = EvaluationBudget(self.budget)
-            sim = replay_multicontact(cls, x0, replayed.clocks, replayed.controls,
-                                      replayed.horizon, options=budget.options(options))
+            sim = self.simulate(plan, gap_tolerance, EvaluationBudget(self.budget), x0)
             if not sim.success:
                 raise SolveFailed(f"kicked multi-contact replay stopped: {sim.message}", sim)
             return sim.final_state()

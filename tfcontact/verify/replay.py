@@ -194,6 +194,11 @@ def end_state_check(plan: ReplayedPlan, tolerance: float, deviation: float,
     kick = SENSITIVITY_KICK * tol
     sensitivity = open_loop_sensitivity(plan, reference_end, kick, replay_end)
     amplification = sensitivity / kick
+    if np.isnan(sensitivity):
+        notes.append(f"open-loop replay {deviation:.2e} from the plan, local defects sum to "
+                     f"{defect_sum:.2e}; a replay with kicked start velocities stopped, so "
+                     "the amplification is not measured and the end-state check fails")
+        return False, defect_sum, amplification
     explained = amplification * defect_sum >= deviation
     notes.append(
         f"open-loop replay {deviation:.2e} from the plan, local defects sum to "
