@@ -468,3 +468,27 @@ def test_a_vertical_base_is_a_rail_in_z():
                                pin.crba(robot.model, robot.data, q), atol=1e-12)
     cls = from_robot(robot, mu=0.5)
     assert cls.contacts[0].n_tangents == 1
+
+
+def test_a_fixed_base_arm_moving_in_the_xz_plane_gets_planar_contacts():
+    """example-robot-data's finger_edu with its first joint (about a tilted axis) locked
+    turns its tip about world y only: one tangent, as on a planar base. Unlocked its tip
+    leaves the plane and gets two; so does a fixed-base solo12 leg's foot."""
+    import pinocchio as pin
+
+    tip = (ContactSpec("finger_tip_link", 0.0095),)
+    locked = load_robot("finger_edu", locked_joints=("finger_base_to_upper_joint",),
+                        contacts=tip)
+    free = load_robot("finger_edu", contacts=tip)
+    assert locked.planar and not free.planar
+    assert locked.contact_terms()[0].world_tangents.shape == (3, 1)
+    assert free.contact_terms()[0].world_tangents.shape == (3, 2)
+    assert not load_robot("solo12", contacts=(ContactSpec("FL_FOOT", 0.016),)).planar
+    # the reason, from Pinocchio: the locked finger's tip has no y velocity anywhere
+    model, data = locked.model, locked.model.createData()
+    frame = model.getFrameId("finger_tip_link")
+    for q in np.random.default_rng(1).uniform(-2, 2, (5, model.nq)):
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        jac = pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)
+        assert np.abs(jac[1]).max() < 1e-12 < np.abs(jac[[0, 2]]).max()

@@ -45,6 +45,9 @@ INERTIA_RTOL = 1e-9
 #: M(q) counts as singular when a Cholesky pivot is below this fraction of its largest
 #: diagonal entry, i.e. a condition number beyond 1e12, past what double precision resolves.
 MASS_MATRIX_RTOL = 1e-12
+#: A contact frame moves in the x-z plane when its Jacobian's y row is below this fraction
+#: of its largest translational entry (round-off of the URDF's axes and origins).
+PLANAR_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -79,6 +82,7 @@ class Robot:
     visual_model: pin.GeometryModel
     twin: RobotTwin
     contacts: tuple[ContactSpec, ...] = field(default=())
+    _fixed_base_planar: bool | None = field(default=None, init=False, repr=False)
 
     @property
     def q(self) -> ca.SX:
@@ -110,8 +114,34 @@ class Robot:
 
     @property
     def planar(self) -> bool:
-        """True when the base keeps the robot in the world x-z plane."""
-        return self.spec.base in PLANAR_BASES
+        """True when the contacts move in the world x-z plane only: a planar base
+        (`PLANAR_BASES`), or a fixed base whose joints move no contact frame along y (an
+        arm whose out-of-plane joints are locked). Such contacts get one tangent: a
+        second, along y, would have no column in J(q) and make the Delassus matrix
+        singular."""
+        if self.spec.base in PLANAR_BASES:
+            return True
+        if self.spec.base != "fixed" or not self.contacts:
+            return False
+        if self._fixed_base_planar is None:
+            self._fixed_base_planar = self._contacts_stay_in_xz_plane()
+        return self._fixed_base_planar
+
+    def _contacts_stay_in_xz_plane(self) -> bool:
+        # J's y row of every contact frame vanishes at a few configurations (a revolute
+        # joint about world y or a prismatic one in x-z moves a point in the plane only)
+        model, data = self.model, self.model.createData()
+        rng = np.random.default_rng(0)
+        frames = [model.getFrameId(c.frame) for c in self.contacts]
+        for _ in range(3):
+            q = rng.uniform(-np.pi, np.pi, model.nq)
+            pin.computeJointJacobians(model, data, q)
+            pin.updateFramePlacements(model, data)
+            for frame in frames:
+                jac = pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)
+                if np.abs(jac[1]).max() > PLANAR_TOLERANCE * max(np.abs(jac[:3]).max(), 1.0):
+                    return False
+        return True
 
     @property
     def joint_names(self) -> tuple[str, ...]:
