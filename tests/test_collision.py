@@ -227,6 +227,35 @@ def test_substeps_catch_a_body_between_samples(leg):
     assert report.body("knee").min_distance == pytest.approx(0.01, abs=1e-9)
 
 
+def test_a_body_holding_its_contacts_sphere_touches_there_only(tmp_path):
+    """finger_edu's lower-link mesh holds its tip: a body on a contact's joint (not at the
+    contact frame's place) may touch the terrain inside the contact's sphere. A stick
+    (box 0.02 x 0.02 x 0.3 m below its joint, on a planar base) with the contact `tip` at
+    its lower end (radius 0.015, above the bottom face's half diagonal 0.0141): standing
+    on its tip it is the contact touching; upside down, touching with its top end, it
+    gets the hint."""
+    body = (_link("stick", '<box size="0.02 0.02 0.3"/>', origin="0 0 -0.15")
+            + _joint("tip_fix", "fixed", "stick", "tip", "0 0 -0.3") + _link("tip"))
+    robot = load_robot(_urdf(tmp_path, "stick", body), base="planar",
+                       contacts=(ContactSpec("tip", 0.015),))
+    ground = [halfspace_obstacle("ground")]
+    standing = check_robot_collisions(robot, [0.0], [[0.0, 0.3, 0.0]], ground)
+    assert standing.status is CollisionStatus.CLEAR and standing.hints == ()
+    assert standing.body("stick_0").contact
+    assert standing.body("stick_0").min_distance == pytest.approx(0.0, abs=1e-9)
+    # without the radius the rule is the frame's place only: the old hint
+    names_only = check_collisions(robot.model, robot.collision_model, [0.0],
+                                  [[0.0, 0.3, 0.0]], ground, contacts=("tip",))
+    assert names_only.status is CollisionStatus.UNDECLARED_CONTACT
+    upside_down = check_robot_collisions(robot, [0.0, 0.1], [[0.0, 0.3, 0.0],
+                                                             [0.0, 0.0, math.pi]], ground)
+    assert upside_down.status is CollisionStatus.UNDECLARED_CONTACT
+    assert not upside_down.body("stick_0").contact
+    assert upside_down.hints == (
+        "body 'stick_0' touches obstacle 'ground' at t = 0.100 s (distance +0.0 mm): declare "
+        "a contact on it (ContactSpec on frame 'stick') or raise it",)
+
+
 # ----------------------------------------------------------------------------- self-collision
 
 
@@ -357,6 +386,8 @@ def test_obstacles_are_validated():
     (([0.0], [[0.1]]), {"contacts": ("toe",)},
      r"`contacts` names frame 'toe', which is not in the model"),
     (([0.0], [[0.1]]), {"contacts": "ball"}, r"`contacts` must be a sequence of frame names"),
+    (([0.0], [[0.1]]), {"contacts": ("ball",), "contact_radii": (0.05, 0.01)},
+     r"`contact_radii` must be one radius >= 0 \[m\] per contact \(1\)"),
     (([0.0], [[0.1]]), {"options": CollisionOptions(ignore_bodies=("knee",))},
      r"`CollisionOptions` names body `knee`, which is not in the collision model; bodies: ball_0"),
     (([0.0], [[0.1]]), {"options": {"tolerance": 1e-3}}, r"`options` must be a CollisionOptions"),

@@ -362,7 +362,9 @@ class BodyDistance:
         min_distance: the smallest signed distance to any obstacle [m] (< 0: penetration).
         time: the physical time [s] of that minimum (the first one).
         obstacle: the obstacle it is closest to then.
-        contact: the body is a declared contact's body (touching is expected).
+        contact: the body is a declared contact's body (touching is expected): its frame
+            is a contact's, or it sits on a contact's joint and touches the terrain only
+            inside that contact's sphere (a lower leg whose mesh holds the foot).
     """
 
     body: str
@@ -467,7 +469,9 @@ def check_robot_collisions(robot: Robot, t: np.ndarray, q: np.ndarray,
     if not isinstance(robot, Robot):
         raise InvalidInput(f"`robot` must be a tfcontact Robot, got {type(robot).__name__}")
     return check_collisions(robot.model, robot.collision_model, t, q, obstacles,
-                            contacts=tuple(c.frame for c in robot.contacts), options=options)
+                            contacts=tuple(c.frame for c in robot.contacts),
+                            contact_radii=tuple(c.radius for c in robot.contacts),
+                            options=options)
 
 
 def check_collisions(
@@ -478,6 +482,7 @@ def check_collisions(
     obstacles: Sequence[Obstacle],
     *,
     contacts: Sequence[str] = (),
+    contact_radii: Sequence[float] = (),
     options: CollisionOptions | None = None,
 ) -> CollisionReport:
     """Distances of every collision body to the terrain and to each other along a motion.
@@ -498,6 +503,11 @@ def check_collisions(
         contacts: the frames of the declared contacts: a body whose frame is one of them
             (or sits on the same joint at the same place, e.g. a URDF link and its fixed
             joint) may touch the terrain; other bodies touching it get a hint.
+        contact_radii: the radii [m] of the contacts' spheres, in the order of `contacts`
+            (or empty): a body on a contact's joint whose mesh also holds that sphere
+            (finger_edu's lower link and its tip) may touch the terrain inside the sphere
+            (its nearest point within radius + `touch_distance` of the frame); touching
+            elsewhere gets the hint.
         options: a `CollisionOptions`; default `CollisionOptions()`.
 
     Returns:
@@ -506,7 +516,7 @@ def check_collisions(
     Raises:
         InvalidInput: arrays of the wrong shape or with non-finite values, times that
             decrease, obstacles that are not `Obstacle`s or share a name, contact frames or
-            ignored bodies that are not in the model.
+            ignored bodies that are not in the model, radii that do not match `contacts`.
     """
     options = CollisionOptions() if options is None else options
     if not isinstance(options, CollisionOptions):
@@ -535,6 +545,12 @@ def check_collisions(
                 f"`contacts` names frame {c!r}, which is not in the model; frames: "
                 f"{', '.join(frames)}")
 
+    radii = np.asarray(contact_radii, dtype=float).reshape(-1)
+    if radii.size and (radii.size != len(contacts) or not np.all(np.isfinite(radii))
+                       or np.any(radii < 0)):
+        raise InvalidInput(f"`contact_radii` must be one radius >= 0 [m] per contact "
+                           f"({len(contacts)}), got {tuple(contact_radii)!r}")
+
     geoms = list(collision_model.geometryObjects)
     links = [model.frames[g.parentFrame].name for g in geoms]
     known = set(links) | {g.name for g in geoms}
@@ -549,6 +565,11 @@ def check_collisions(
     contact_ids = [model.getFrameId(c) for c in contacts]
     is_contact = {i: any(_same_place(model, geoms[i].parentFrame, f) for f in contact_ids)
                   for i in bodies}
+    # bodies on a contact's joint that may hold its sphere: (frame, radius) per body
+    spheres = {i: [(f, r) for f, r in zip(contact_ids, radii, strict=False)
+                   if model.frames[f].parentJoint == geoms[i].parentJoint]
+               for i in bodies if not is_contact[i]} if radii.size else {}
+    spheres = {i: v for i, v in spheres.items() if v}
 
     # One geometry model holding the robot's bodies and the obstacles (on the universe).
     work, meshes = _working_model(geoms, options.meshes_as_convex)
@@ -565,6 +586,9 @@ def check_collisions(
     n_terrain = len(terrain_pairs)
     distances = np.empty((times.size, len(work.collisionPairs)))
     data = model.createData()
+    # a sphere-holding body's first touch outside its contact's sphere: (sample, distance)
+    touches_elsewhere: dict[int, tuple[int, float]] = {}
+    body_column = {b: j for j, b in enumerate(bodies)}
     for k, qk in enumerate(configs):
         # A fresh GeometryData per configuration: Pinocchio's requests warm-start GJK from
         # the last call, and EPA's penetration depths then depend on the order of the
@@ -572,6 +596,16 @@ def check_collisions(
         geom_data = work.createData()
         pin.computeDistances(model, data, work, geom_data, qk)
         distances[k] = [r.min_distance for r in geom_data.distanceResults]
+        if spheres:
+            pin.updateFramePlacements(model, data)
+            for p, (b, _) in enumerate(terrain_pairs):
+                result = geom_data.distanceResults[p]
+                if (b in spheres and b not in touches_elsewhere
+                        and result.min_distance < options.touch_distance):
+                    near = np.asarray(result.getNearestPoint1())  # on the body, world frame
+                    if not any(np.linalg.norm(near - data.oMf[f].translation)
+                               <= r + options.touch_distance for f, r in spheres[b]):
+                        touches_elsewhere[b] = (k, float(result.min_distance))
     per_obstacle = distances[:, :n_terrain].reshape(times.size, len(bodies), len(obstacles))
     pair_distance = distances[:, n_terrain:]
     if obstacles:
@@ -581,6 +615,10 @@ def check_collisions(
         nearest = np.zeros((times.size, len(bodies)), dtype=int)
         terrain_distance = np.full((times.size, len(bodies)), np.inf)
 
+    for b in spheres:
+        # it touched, and only inside its contact's sphere: the declared contact touches
+        touched = bool(np.any(terrain_distance[:, body_column[b]] < options.touch_distance))
+        is_contact[b] = touched and b not in touches_elsewhere
     body_rows = []
     for j, i in enumerate(bodies):
         k = int(np.argmin(terrain_distance[:, j]))
@@ -595,11 +633,18 @@ def check_collisions(
                                       float(pair_distance[k, j]), float(times[k])))
 
     tol = options.tolerance
-    hints = tuple(
-        f"body '{b.body}' touches obstacle '{b.obstacle}' at t = {b.time:.3f} s "
-        f"(distance {_mm(b.min_distance)} mm): declare a contact on it (ContactSpec on frame "
-        f"'{b.link}') or raise it"
-        for b in body_rows if not b.contact and b.min_distance < options.touch_distance)
+    hints = []
+    for i, b in zip(bodies, body_rows, strict=True):
+        if b.contact or not b.min_distance < options.touch_distance:
+            continue
+        when, distance = b.time, b.min_distance
+        if i in touches_elsewhere:  # where it first touches outside its contact's sphere
+            k, distance = touches_elsewhere[i]
+            when = float(times[k])
+        hints.append(f"body '{b.body}' touches obstacle '{b.obstacle}' at t = "
+                     f"{when:.3f} s (distance {_mm(distance)} mm): declare a contact on it "
+                     f"(ContactSpec on frame '{b.link}') or raise it")
+    hints = tuple(hints)
     offenders = [(b.min_distance, _through(b)) for b in body_rows] if obstacles else []
     offenders += [(p.min_distance, f"body '{p.body_a}' {_depth(p.min_distance)} body "
                    f"'{p.body_b}' at t = {p.time:.3f} s") for p in pair_rows]
