@@ -321,3 +321,25 @@ def test_auto_replay_falls_back_to_fesd_where_the_reference_does_not_apply(pushe
                              "with friction); FESD used")
     assert len(auto.local_defects) == 3 and max(auto.local_defects) < 1e-5
 
+
+
+def test_the_open_loop_replay_takes_a_start_on_the_ground_up_to_round_off():
+    """A start put on the ground by hand lies a few 1e-12 m inside it (finger_edu's tip,
+    its angles and table height written to ten digits): the replay starts there in
+    persistent contact (a resting mass stays at rest), up to `START_ROUNDOFF`; a start
+    1 um inside is an error, not a start."""
+    from tfcontact.scenes.particles import point_mass
+    from tfcontact.verify.replay import START_ROUNDOFF, ReplayedPlan
+
+    def resting(depth):
+        x0 = np.array([-depth, 0.0])
+        return ReplayedPlan(cls=point_mass(1), x0=x0, clocks=np.array([0.0, 0.1]),
+                            states=np.stack([x0, x0]), controls=np.zeros((1, 0)),
+                            horizon=0.1)
+
+    for depth in (5e-12, 0.5 * START_ROUNDOFF):
+        replay = resting(depth).replay()
+        assert replay.status == "success"
+        np.testing.assert_allclose(replay.final_state(), [-depth, 0.0], atol=1e-12)
+    with pytest.raises(InvalidInput, match="inside the obstacle"):
+        resting(1e-6).replay()

@@ -20,6 +20,11 @@ from tfcontact.errors import SolveFailed, TfcontactError
 from tfcontact.timefreezing import ComplementarityLagrangianSystem
 from tfcontact.verify.reference import replay_controls
 
+START_ROUNDOFF = 1e-9
+"""A plan's start may lie this far inside an obstacle [m] in its open-loop replay: the
+round-off of a start put on the ground by hand (a task's joint angles and surface height
+written to ten digits left finger_edu's tip 5e-12 m inside its table)."""
+
 
 @dataclass(frozen=True, eq=False)
 class ReplayedPlan:
@@ -44,9 +49,10 @@ class ReplayedPlan:
 
     def replay(self, x0: np.ndarray | None = None):
         """The controls replayed by the event-detecting reference from x0 (default: the
-        plan's start)."""
+        plan's start), which may lie `START_ROUNDOFF` inside an obstacle."""
         return replay_controls(self.cls, self.x0 if x0 is None else x0, self.clocks,
-                               self.controls, self.horizon, rtol=1e-10, atol=1e-11)
+                               self.controls, self.horizon, rtol=1e-10, atol=1e-11,
+                               start_gap_tolerance=START_ROUNDOFF)
 
 
 def reference_deviation(plan: ReplayedPlan, end_state: np.ndarray,
