@@ -747,6 +747,47 @@ def test_the_example_robot_data_task_builds_solo12s_leg_on_a_rail():
     assert min(feet[f] for f in ("FR_FOOT", "HL_FOOT", "HR_FOOT")) > 0.15
 
 
+def test_the_finger_tap_task_builds_finger_edu_with_a_planar_tip():
+    """`finger-tap`: example-robot-data's finger_edu on its fixed base with the first joint
+    locked: two coordinates, the task's effort bound (not the URDF's 1000 N m), one
+    tangent at the tip (it moves in the x-z plane), the tip touching the table at the
+    start (up to the round-off of the file's ten digits)."""
+    setup = build_task(load_task(shipped_tasks()["finger-tap"]))
+    cls = setup.problem.system.cls
+    assert cls.q_names == ("finger_upper_to_middle_joint", "finger_middle_to_lower_joint")
+    np.testing.assert_allclose(setup.problem.u_upper, [0.36, 0.36])
+    assert setup.robot.planar and cls.contacts[0].n_tangents == 1
+    assert cls.contacts[0].mu == 0.6
+    assert float(cls.function("gaps")(setup.problem.q0)) == pytest.approx(0.0, abs=1e-10)
+
+
+def test_example_robot_datas_finger_taps_verified():
+    """The shipped task for an example-robot-data robot plans (about 6 s): converged,
+    verified against the exact-impact reference (one contact: not the method that made
+    it), its goals met (one lift-off above 2 cm, the tip resting on the table at T), and
+    every URDF body clear of the table: the lower link's mesh touches it only inside the
+    tip's sphere."""
+    import dataclasses
+
+    from tfcontact.ocp.contact import solve_contact
+    from tfcontact.verify.collision import (
+        CollisionStatus,
+        check_robot_collisions,
+        terrain_obstacles,
+    )
+
+    setup = build_task(load_task(shipped_tasks()["finger-tap"]))
+    options = dataclasses.replace(setup.options, attempts=1)
+    result = solve_contact(setup.problem, options, verbose=False, throw=False)
+    assert result.success, result.summary()
+    assert result.verification.method.startswith("event-detecting reference")
+    assert result.task.passed, result.task.summary()
+    report = check_robot_collisions(setup.robot, result.physical.t, result.physical.q,
+                                    terrain_obstacles(setup.task.terrain.terrain))
+    assert report.status is CollisionStatus.CLEAR, report.hints
+    assert report.body("finger_lower_link_0").contact
+
+
 SOLO_LEG_NO_HOP = ("measured: the fast preset converges (about 2 s) with the foot never "
                    "leaving the ground (lift-offs 0 of 1); the default preset and the "
                    "reference guess find a hop that fails its exact-impact replay")
