@@ -112,6 +112,32 @@ def test_hole_profiles_follow_the_hole_constraints():
                                   hole_profile(REDUCED_TASK, 0.5))
 
 
+def test_terrain_holes_are_the_terrains_and_leave_the_foot_unsupported_over_them():
+    """hole_form "terrain": the hole is a `Hole` of the terrain (x in [0.25, 0.75], rim
+    rounded 1 cm): the foot straight under the hip has gap p_foot,z on the ground and no
+    support over the hole (there the gap is the distance to the hole's wall or rounded
+    rim, positive below the ground); no path constraint on the holes or the foot's height;
+    the sidecar's scene is the terrain of primitives."""
+    import dataclasses
+
+    task = dataclasses.replace(REDUCED_TASK, hole_form="terrain")
+    mp = monoped_problem(task)
+    gaps = mp.system.cls.function("gaps")
+    on_ground = np.array([0.1, 0.4, 0.0, 0.0])  # foot centre at (0.1, 0)
+    assert float(gaps(on_ground)) == pytest.approx(0.0, abs=1e-12)
+    # the solid beside the hole is the plane's half (z <= -r_f, x <= 0.25) with its edge
+    # rounded by 1 cm: the rounded box is the box shrunk by 1 cm, offset by 1 cm
+    below_over_hole = np.array([0.5, 0.35, 0.0, 0.0])  # foot centre at (0.5, -0.05)
+    assert float(gaps(below_over_hole)) == pytest.approx(0.25 - FOOT_RADIUS, abs=1e-9)
+    near_rim = np.array([0.27, 0.4, 0.0, 0.0])  # foot centre at (0.27, 0), over the hole
+    corner = np.hypot(0.27 - 0.24, 0.0 - (-FOOT_RADIUS - 0.01)) - 0.01
+    assert float(gaps(near_rim)) == pytest.approx(corner - FOOT_RADIUS, abs=1e-9)
+    assert mp.problem.path.expression.shape[0] == 4
+    assert np.isneginf(mp.problem.path.lower[3])
+    kinds = [p["kind"] for p in mp.scene()["terrain"]["primitives"]]
+    assert kinds == ["plane", "hole"]
+
+
 def test_bad_task():
     with pytest.raises(InvalidInput, match="`q_goal` must be"):
         MonopedTask(q_goal=(1.0, 0.4))

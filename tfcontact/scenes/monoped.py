@@ -29,11 +29,15 @@ from tfcontact.errors import InvalidInput
 from tfcontact.ocp.contact import ContactProblem
 from tfcontact.ocp.goals import EndPosition, LiftOffs, Moves
 from tfcontact.ocp.problem import Constraint
-from tfcontact.robot import ContactSpec, Ground, Robot, load_robot
+from tfcontact.robot import ContactSpec, Ground, Hole, Plane, Robot, Terrain, load_robot
 from tfcontact.timefreezing import Inelastic, TimeFreezingSystem, from_robot, time_freeze
 
 FOOT_RADIUS = 0.028
 """Radius of the URDF's foot sphere [m]; the ground is lowered by it (point-foot gap)."""
+
+
+HOLE_FORMS = ("ellipse", "bump", "terrain")
+"""How a `MonopedTask` models its holes (`MonopedTask.hole_form`)."""
 
 
 @dataclass(frozen=True)
@@ -55,7 +59,12 @@ class MonopedTask:
         hole_form: "ellipse": ((p_x - x_c)/a)^2 + (p_z/b)^2 >= 1 (TF-9); "bump":
             p_z >= b (1 - ((p_x - x_c)/a)^2), the parabola under the ellipse's top half,
             whose gradient in p_z never vanishes (the ellipse's does at p_z = 0, where a
-            foot on the ground at a hole's edge gets stuck in a locally infeasible point).
+            foot on the ground at a hole's edge gets stuck in a locally infeasible point);
+            "terrain": the holes are the terrain's (`tfcontact.robot.Hole`, bottomless,
+            rims rounded by `hole_rounding`): no support over |p_x - x_c| < a, where the
+            foot may dip below the ground, and no path constraint on the foot's height
+            (the gap against the terrain keeps it out of the ground elsewhere).
+        hole_rounding: the rim radius [m] of terrain holes.
         lift_height: the task's check counts a hop where the foot rises above this [m];
             one hop per hole is asked (and the base x at the goal's, within 5 cm).
     """
@@ -75,10 +84,12 @@ class MonopedTask:
     hole_form: str = "ellipse"
     gap_scale: float = 1.0
     lift_height: float = 0.05
+    hole_rounding: float = 0.01
 
     def __post_init__(self) -> None:
-        if self.hole_form not in ("ellipse", "bump"):
-            raise InvalidInput(f"`hole_form` must be 'ellipse' or 'bump', got {self.hole_form!r}")
+        if self.hole_form not in HOLE_FORMS:
+            raise InvalidInput(f"`hole_form` must be one of {', '.join(map(repr, HOLE_FORMS))}, "
+                               f"got {self.hole_form!r}")
         for name in ("q0", "q_goal"):
             if len(getattr(self, name)) != 4:
                 raise InvalidInput(
@@ -164,7 +175,8 @@ class MonopedProblem:
     Attributes:
         task: the `MonopedTask`.
         robot: the loaded `Robot` (with the foot contact candidate).
-        ground: the `Ground` (lowered by the foot radius).
+        ground: the `Ground` (lowered by the foot radius), or with terrain holes the
+            `Terrain` (that plane minus the holes).
         system: `time_freeze(from_robot(robot, ground, mu, a_n))`.
         problem: the `ContactProblem`.
         knee, foot: CasADi functions q -> (x, z) of the knee and foot centre [m].
@@ -172,7 +184,7 @@ class MonopedProblem:
 
     task: MonopedTask
     robot: Robot
-    ground: Ground
+    ground: Ground | Terrain
     system: TimeFreezingSystem
     problem: ContactProblem
     knee: ca.Function
@@ -180,8 +192,13 @@ class MonopedProblem:
 
     def scene(self) -> dict:
         """The scene of the plan's trajectory sidecar: the lowered ground and the holes,
-        each with its `hole_profile` (what the replay draws)."""
+        each with its `hole_profile` (what the replay draws); with terrain holes the
+        terrain of primitives (`Terrain.to_dict`)."""
         task = self.task
+        if isinstance(self.ground, Terrain):
+            return {"terrain": self.ground.to_dict(),
+                    "note": "the foot sphere (radius 0.028 m) rests on the ground lowered "
+                            "by its radius; the holes are the terrain's"}
         return {
             "terrain": {"type": "flat", "height": float(self.ground.height),
                         "normal": [float(c) for c in self.ground.normal]},
@@ -194,7 +211,8 @@ class MonopedProblem:
 
     def hole_values(self, q: np.ndarray) -> np.ndarray:
         """((p_x - x_c) / a)^2 + (p_z / b)^2 - 1 per hole at configurations q (n, 4) -> (n, k);
-        >= 0 outside the holes."""
+        >= 0 outside the holes (TF-9's ellipses; for terrain holes a diagnostic only: the
+        foot may pass below them)."""
         p = np.asarray(self.foot(np.atleast_2d(q).T)).T
         a, b = self.task.hole_half_width, self.task.hole_depth
         return np.stack([((p[:, 0] - c) / a) ** 2 + (p[:, 1] / b) ** 2 - 1.0
@@ -217,14 +235,20 @@ def monoped_problem(task: MonopedTask | str = "full") -> MonopedProblem:
 
     State bounds ([AUTO23] section 6): q_x >= -0.05, 0.2 <= q_z <= 0.55,
     |phi_hip| <= 3 pi / 8, |phi_knee| <= pi / 2. Path constraints at every stage point:
-    p_foot,x, p_knee,x >= -0.05; p_knee,z >= 0.05; -0.005 <= p_foot,z <= 0.2; the holes.
+    p_foot,x, p_knee,x >= -0.05; p_knee,z >= 0.05; -0.005 <= p_foot,z <= 0.2; the holes
+    (with `hole_form` "terrain" the terrain's instead, and no lower bound on p_foot,z).
     Terminal constraint q(T) = q_goal; cost int u^T u dt (physical time). `task` may be a
     `MonopedTask` or a name of `monoped_task`.
     """
     task = monoped_task(task) if isinstance(task, str) else task
     robot = load_robot("monoped", base="planar_xz",
                        contacts=(ContactSpec("foot", FOOT_RADIUS),))
-    ground = Ground(height=-FOOT_RADIUS)
+    a, b = task.hole_half_width, task.hole_depth
+    ground: Ground | Terrain = Ground(height=-FOOT_RADIUS)
+    if task.hole_form == "terrain":
+        ground = Terrain((Plane(height=-FOOT_RADIUS, friction=task.mu),
+                          *(Hole(x=(c - a, c + a), rounding=task.hole_rounding)
+                            for c in task.holes)))
     cls = from_robot(robot, ground, mu=task.mu, a_n=task.a_n)
     system = time_freeze(cls, method=Inelastic(gap_scale=task.gap_scale))
     q_sym = robot.twin.q
@@ -234,15 +258,17 @@ def monoped_problem(task: MonopedTask | str = "full") -> MonopedProblem:
     q = y[system.q_index]
     p_knee = knee(q)
     p_foot = foot(q)
-    a, b = task.hole_half_width, task.hole_depth
+    foot_floor = -0.005
     if task.hole_form == "ellipse":
         holes = [((p_foot[0] - c) / a) ** 2 + (p_foot[1] / b) ** 2 for c in task.holes]
         hole_lower = [1.0] * len(holes)
-    else:
+    elif task.hole_form == "bump":
         holes = [p_foot[1] - b * (1 - ((p_foot[0] - c) / a) ** 2) for c in task.holes]
         hole_lower = [0.0] * len(holes)
+    else:  # the terrain has the holes, and its gap keeps the foot out of the ground
+        holes, hole_lower, foot_floor = [], [], -np.inf
     path_expr = ca.vertcat(p_foot[0], p_knee[0], p_knee[1], p_foot[1], *holes)
-    path_lower = [-0.05, -0.05, 0.05, -0.005] + hole_lower
+    path_lower = [-0.05, -0.05, 0.05, foot_floor] + hole_lower
     path_upper = [np.inf, np.inf, np.inf, 0.2] + [np.inf] * len(holes)
     problem = ContactProblem(
         system=system, q0=np.array(task.q0), v0=np.zeros(4), horizon=task.horizon,
