@@ -566,7 +566,7 @@ def check_collisions(
     is_contact = {i: any(_same_place(model, geoms[i].parentFrame, f) for f in contact_ids)
                   for i in bodies}
     # bodies on a contact's joint that may hold its sphere: (frame, radius) per body
-    spheres = {i: [(f, r) for f, r in zip(contact_ids, radii, strict=False)
+    spheres = {i: [(f, r) for f, r in zip(contact_ids, radii, strict=True)
                    if model.frames[f].parentJoint == geoms[i].parentJoint]
                for i in bodies if not is_contact[i]} if radii.size else {}
     spheres = {i: v for i, v in spheres.items() if v}
@@ -586,8 +586,9 @@ def check_collisions(
     n_terrain = len(terrain_pairs)
     distances = np.empty((times.size, len(work.collisionPairs)))
     data = model.createData()
-    # a sphere-holding body's first touch outside its contact's sphere: (sample, distance)
-    touches_elsewhere: dict[int, tuple[int, float]] = {}
+    # a sphere-holding body's first touch outside its contact's sphere: (sample, distance,
+    # obstacle)
+    touches_elsewhere: dict[int, tuple[int, float, str]] = {}
     body_column = {b: j for j, b in enumerate(bodies)}
     for k, qk in enumerate(configs):
         # A fresh GeometryData per configuration: Pinocchio's requests warm-start GJK from
@@ -598,14 +599,15 @@ def check_collisions(
         distances[k] = [r.min_distance for r in geom_data.distanceResults]
         if spheres:
             pin.updateFramePlacements(model, data)
-            for p, (b, _) in enumerate(terrain_pairs):
+            for p, (b, o) in enumerate(terrain_pairs):
                 result = geom_data.distanceResults[p]
                 if (b in spheres and b not in touches_elsewhere
                         and result.min_distance < options.touch_distance):
                     near = np.asarray(result.getNearestPoint1())  # on the body, world frame
                     if not any(np.linalg.norm(near - data.oMf[f].translation)
                                <= r + options.touch_distance for f, r in spheres[b]):
-                        touches_elsewhere[b] = (k, float(result.min_distance))
+                        touches_elsewhere[b] = (k, float(result.min_distance),
+                                                obstacles[o].name)
     per_obstacle = distances[:, :n_terrain].reshape(times.size, len(bodies), len(obstacles))
     pair_distance = distances[:, n_terrain:]
     if obstacles:
@@ -637,11 +639,11 @@ def check_collisions(
     for i, b in zip(bodies, body_rows, strict=True):
         if b.contact or not b.min_distance < options.touch_distance:
             continue
-        when, distance = b.time, b.min_distance
+        when, distance, obstacle = b.time, b.min_distance, b.obstacle
         if i in touches_elsewhere:  # where it first touches outside its contact's sphere
-            k, distance = touches_elsewhere[i]
+            k, distance, obstacle = touches_elsewhere[i]
             when = float(times[k])
-        hints.append(f"body '{b.body}' touches obstacle '{b.obstacle}' at t = "
+        hints.append(f"body '{b.body}' touches obstacle '{obstacle}' at t = "
                      f"{when:.3f} s (distance {_mm(distance)} mm): declare a contact on it "
                      f"(ContactSpec on frame '{b.link}') or raise it")
     hints = tuple(hints)
