@@ -566,10 +566,12 @@ def check_collisions(
     is_contact = {i: any(_same_place(model, geoms[i].parentFrame, f) for f in contact_ids)
                   for i in bodies}
     # bodies on a contact's joint that may hold its sphere: (frame, radius) per body
-    spheres = {i: [(f, r) for f, r in zip(contact_ids, radii, strict=True)
-                   if model.frames[f].parentJoint == geoms[i].parentJoint]
-               for i in bodies if not is_contact[i]} if radii.size else {}
-    spheres = {i: v for i, v in spheres.items() if v}
+    spheres: dict[int, list[tuple[int, float]]] = {}
+    for i in bodies if radii.size else ():
+        held = [(f, float(r)) for f, r in zip(contact_ids, radii, strict=True)
+                if model.frames[f].parentJoint == geoms[i].parentJoint]
+        if held and not is_contact[i]:
+            spheres[i] = held
 
     # One geometry model holding the robot's bodies and the obstacles (on the universe).
     work, meshes = _working_model(geoms, options.meshes_as_convex)
