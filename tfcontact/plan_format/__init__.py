@@ -3,7 +3,8 @@
 * `trajectory`: the trajectory file (`.npz` arrays + `.json` sidecar, checksums, format
   versions), physical-time recovery from the stored samples, the one frozen-rate
   tolerance (`tfcontact.timefreezing.FROZEN_RATE_TOL`).
-* `adapters`: results to trajectories (`trajectory_from_result`, `trajectory_from_polished`;
+* `adapters`: results to trajectories (`trajectory_from_result`, `trajectory_from_polished`,
+  `trajectory_from_stances`;
   `terrain_directions`: world normals and tangents along a terrain),
   the sidecar's robot and solver records, and the file's physics check (`check_plan`).
 
@@ -21,6 +22,7 @@ from tfcontact.plan_format.adapters import (
     terrain_directions,
     trajectory_from_polished,
     trajectory_from_result,
+    trajectory_from_stances,
 )
 from tfcontact.plan_format.trajectory import (
     FORMAT_VERSION,
@@ -53,5 +55,6 @@ __all__ = [
     "solver_record",
     "terrain_directions",
     "trajectory_from_polished",
+    "trajectory_from_stances",
     "trajectory_from_result",
 ]

@@ -436,6 +436,67 @@ def trajectory_from_polished(
     )
 
 
+def trajectory_from_stances(
+    plan: Any,
+    cls: Any,
+    robot_spec: Any,
+    scene: dict[str, Any] | None = None,
+    *,
+    directions: Any = None,
+    solver: dict[str, Any] | None = None,
+    task: dict[str, Any] | None = None,
+) -> Trajectory:
+    """The `Trajectory` of a plan re-solved along a sequence of stances
+    (`tfcontact.ocp.stances.StancePlan`, several contacts, one per robot contact).
+
+    Its samples are the plan's nodes; tau is the physical time plus `IMPACT_TAU` per
+    touchdown passed (a frozen piece carrying the impulses, as `trajectory_from_polished`),
+    s = 1. Forces and impulses in the world frame along `directions` (as for
+    `trajectory_from_result`: per contact (n_w, T_w) or a function of q; default the
+    ground of `scene["terrain"]`). `extras["closed"]`: which contacts are closed.
+    """
+    from tfcontact.ocp.stances import node_values
+    from tfcontact.robot import Ground
+    from tfcontact.timefreezing import FROZEN_RATE_TOL
+
+    robot = robot_spec if isinstance(robot_spec, dict) else robot_spec.to_dict()
+    scene = {"terrain": {"type": "flat", "height": 0.0}} if scene is None else dict(scene)
+    n_c = cls.n_contacts
+    if len(robot.get("contacts", [])) != n_c:
+        raise InvalidInput(f"the robot has {len(robot.get('contacts', []))} contacts and the "
+                           f"plan's system {n_c}")
+    if directions is None:
+        ground = Ground(normal=tuple(scene.get("terrain", {}).get("normal", GROUND_NORMAL)))
+        directions = [(np.asarray(ground.normal),
+                       ground.tangents(c.n_tangents == 1) if c.n_tangents else np.zeros((3, 0)))
+                      for c in cls.contacts]
+    directions_at = directions if callable(directions) else (lambda _q: directions)
+    values = node_values(plan, cls)
+    n_q = cls.n_q
+    clock = np.asarray(plan.t, dtype=float)
+    tau = clock + IMPACT_TAU * np.concatenate([[0], np.cumsum(np.diff(clock) == 0)])
+
+    def world(local: np.ndarray) -> np.ndarray:
+        out = np.zeros((len(clock), n_c, 3))
+        for k, qk in enumerate(plan.x[:, :n_q]):
+            for i, (n_w, t_w) in enumerate(directions_at(qk)):
+                t_w = np.asarray(t_w, dtype=float).reshape(3, -1)
+                out[k, i] = (local[k, i, 0] * np.asarray(n_w, dtype=float).reshape(3)
+                             + t_w @ local[k, i, 1:1 + t_w.shape[1]])
+        return out
+
+    return Trajectory(
+        tau=tau, clock=clock, s=np.ones_like(clock), q=plan.x[:, :n_q], v=plan.x[:, n_q:],
+        u=values["u"], gap=values["gap"], normal_velocity=values["normal_velocity"],
+        force=world(values["force"]), impulse=world(values["impulse"]),
+        status=plan.status, robot=_jsonable(robot), scene=_jsonable(scene),
+        solver=_jsonable(solver or {}), verification=_jsonable(plan.verification.to_dict()),
+        extras={"closed": values["closed"].astype(int)},
+        model=describe_robot(robot, cls), task=_jsonable(task or {}),
+        frozen_rate_tol=FROZEN_RATE_TOL,
+    )
+
+
 # ------------------------------------------------------------------ robot description
 
 #: What each base of `tfcontact.robot.BASES` puts between the world and the URDF's root

@@ -3,6 +3,7 @@ gets the outcome of the stage before and returns its own (`PlanOutcome`); `run_p
 (`tfcontact.scenes.plans`) runs them in turn and writes the last outcome.
 
 Stages: `Discover` finds the contact sequence with the time-freezing homotopy;
+`StanceResolve` re-solves a plan with several contacts exactly along the stances found;
 `ExactResolve` re-solves along a contact sequence exactly, level after level
 (`tfcontact.ocp.chain`), from where its `ResolveStart` says (`FoundSequence`: the
 discovery's sequence; `PreviousPlan`: the exact plan before; a scene's own rule, e.g. the
@@ -24,6 +25,7 @@ import numpy as np
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp.chain import ChainStep, ResolveChain, ResolveLevel, resolve_chain
 from tfcontact.ocp.polish import Phase, PolishedPlan, PolishOptions, contact_phases
+from tfcontact.ocp.stances import StanceOptions, resolve_stances, schedule_of
 
 if TYPE_CHECKING:
     from tfcontact.ocp.contact import ContactProblem, ContactResult, ContactSolverOptions
@@ -272,6 +274,74 @@ def resolved_outcome(chain: ResolveChain, setup: PlanSetup, found: PlanOutcome |
                                           setup.scene, solver=solver, task=task.to_dict())
     return PlanOutcome(trajectory, setup.robot, status, chain.success and task.passed,
                        summary, task=task.to_dict(), setup=setup, chain=chain)
+
+
+@dataclass(frozen=True)
+class StanceResolve(Stage):
+    """Re-solve the discovery's plan exactly along the stances it found
+    (`tfcontact.ocp.stances`: several contacts, each closed one sticking, touchdowns at
+    free times with their impacts, lift-offs at control jumps), verified with the
+    multi-contact reference, the goals checked at its nodes.
+
+    Args:
+        options: `StanceOptions` (default: its defaults).
+        keep_path: keep the problem's path constraints. A task file's are its contacts'
+            no-slip rows (v_t^2 <= k gap, `tfcontact.task`), which the discovery needs and
+            every stance meets by construction (its closed contacts stick): kept, they
+            made a two-legged step's re-solve wander for more than 2000 IPOPT iterations
+            (about 270 without, benchmarks/legged.md).
+    """
+
+    options: StanceOptions | None = None
+    keep_path: bool = True
+    name: str = "stance re-solve"
+    tasks: tuple[str, ...] | None = None
+
+    def run(self, given: StageInput) -> PlanOutcome:
+        from tfcontact.ocp.goals import Motion, check_goals
+        from tfcontact.plan_format import terrain_directions, trajectory_from_stances
+
+        result = discovered(given)
+        found = given.previous
+        setup = found.setup
+        options = self.options or StanceOptions()
+        try:
+            if not result.ocp.success:
+                raise NoStart(f"the discovery's homotopy did not converge ({result.status})")
+            stances = schedule_of(result, options)
+        except (NoStart, InvalidInput) as why:
+            return dataclasses.replace(
+                found, status=found.status if not found.success else "chain_failed",
+                success=False, summary=f"{found.summary}\n{self.name} not started: {why}")
+        if given.verbose:
+            print(f"{self.name}: {len(stances)} stances, closed contacts "
+                  + ", ".join(f"{list(s.closed)} from {s.start:.3f} s" for s in stances),
+                  flush=True)
+        problem = setup.problem
+        solved = problem if self.keep_path else dataclasses.replace(problem, path=None)
+        plan = resolve_stances(solved, stances, options, guess=result, verbose=given.verbose)
+        cls = problem.system.cls
+        gaps = np.asarray(cls.function("gaps")(plan.x[:, :cls.n_q].T)).T
+        task = check_goals(problem.goals, Motion(t=plan.t, q=plan.x[:, :cls.n_q],
+                                                 gaps=gaps.reshape(len(plan.t), -1),
+                                                 names=cls.q_names))
+        status = plan.status if not plan.success else (
+            "converged" if task.passed else task.status)
+        summary = (f"discovery: {result.status}\n{plan.summary()}\n{task.summary()}")
+        solver = {"status": status, "objective": plan.cost, "wall_time": plan.solve_time,
+                  "ipopt_status": plan.ipopt_status, "iterations": plan.iterations,
+                  "stances": [dataclasses.asdict(s) for s in plan.stances],
+                  "method": "exact re-solve along the stances (tfcontact.ocp.stances): RK4 "
+                            "multiple shooting on the fixed control grid",
+                  "discovery": {"status": result.status, "objective": result.ocp.cost,
+                                "iterations": result.ocp.total_iterations}}
+        directions = (None if setup.terrain is None
+                      else terrain_directions(setup.robot, setup.terrain))
+        trajectory = trajectory_from_stances(plan, cls, setup.robot.spec, setup.scene,
+                                             directions=directions, solver=solver,
+                                             task=task.to_dict())
+        return PlanOutcome(trajectory, setup.robot, status, plan.success and task.passed,
+                           summary, task=task.to_dict(), setup=setup)
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ from tfcontact.scenes.pipeline import (
     PlanOutcome,
     PlanSetup,
     StageInput,
+    StanceResolve,
 )
 
 if TYPE_CHECKING:
@@ -109,7 +110,10 @@ def task_plan(source: str | Path) -> Plan:
         terrain = setup.terrain if isinstance(setup.terrain, Terrain) else None
         return PlanSetup(setup.robot, setup.problem, setup.options, setup.scene, terrain)
 
-    stages = (Discover(build), ExactResolve()) if data.exact_resolve else (Discover(build),)
+    # one contact: its sequence with slip phases (`polish`); several: the stances found,
+    # where the task's path rows (its no-slip rows: `build_task`) hold by construction
+    resolve = ExactResolve() if len(data.contacts) == 1 else StanceResolve(keep_path=False)
+    stages = (Discover(build), resolve) if data.exact_resolve else (Discover(build),)
     return Plan(name=data.name, summary=data.description or f"task file {path}",
                 tasks=("task",), stages=stages)
 

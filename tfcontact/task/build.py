@@ -139,6 +139,9 @@ def build_task(task: Task) -> TaskSetup:
 
     lower, upper = _state_bounds(task, robot, state_names)
     u_bound = _effort(task, robot, actuated)
+    # A task's path rows are its contacts' no-slip rows only: the stance re-solve of
+    # several contacts drops them (`StanceResolve(keep_path=False)`, where every closed
+    # contact sticks); a new kind of path row must change that.
     path = None
     rows = []
     for c, entry in zip(cls.contacts, task.contacts, strict=True):

@@ -363,11 +363,14 @@ class Task:
             monotone one, while hopper-step and hopper-platform then failed
             (benchmarks/legged.md).
         exact_resolve: after the discovery, re-solve the plan exactly along the contact
-            sequence it found (`tfcontact.ocp.polish`: no relaxation, impacts at the found
-            times; one planar frictional contact), so that the written plan is the exact
-            one and is verified as such. Measured on hopper-step's terrain: not usable yet
-            (its expanded NLP passed 6 GB; unexpanded, 0.47 s per iteration, unconverged
-            after 1000).
+            sequence it found (no relaxation, impacts at the found times), so that the
+            written plan is the exact one and is verified as such: one planar frictional
+            contact along its stick, slip and flight phases (`tfcontact.ocp.polish`);
+            several contacts along the stances found, each closed contact sticking
+            (`tfcontact.ocp.stances`, verified with the multi-contact reference).
+            Measured on hopper-step's terrain: not usable yet (its expanded NLP passed
+            6 GB; unexpanded, 0.47 s per iteration, unconverged after 1000); on bolt's
+            walk neither (benchmarks/legged.md).
         description: a line for `tfcontact plan --list`.
     """
 

@@ -1,0 +1,151 @@
+"""The exact re-solve along a sequence of stances (`tfcontact.ocp.stances`) against closed
+forms with two contacts: two point masses, each with its own frictional contact with the
+ground (independent contacts, so every stance's Delassus matrix is regular)."""
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from tfcontact.errors import InvalidInput
+from tfcontact.ocp import ContactProblem
+from tfcontact.ocp.stances import (
+    Stance,
+    StanceOptions,
+    cone_rows,
+    resolve_stances,
+    stance_schedule,
+)
+from tfcontact.timefreezing import time_freeze
+from tfcontact.timefreezing.cls import ComplementarityLagrangianSystem, Contact
+
+G = 9.81
+MASSES = (1.0, 2.0)
+MU = 0.7
+
+
+def two_masses() -> ComplementarityLagrangianSystem:
+    """q = (x1, z1, x2, z2); u = (x and z force on each mass); contact i: gap z_i,
+    tangent x_i."""
+    q, v, u = ca.SX.sym("q", 4), ca.SX.sym("v", 4), ca.SX.sym("u", 4)
+    m1, m2 = MASSES
+    contacts = tuple(
+        Contact(gap=q[2 * i + 1], tangents=ca.jacobian(q[2 * i], q).T, mu=MU, name=f"m{i}")
+        for i in range(2))
+    forces = ca.vertcat(u[0], u[1] - m1 * G, u[2], u[3] - m2 * G)
+    return ComplementarityLagrangianSystem(
+        q=q, v=v, u=u, mass_matrix=ca.diag(ca.DM([m1, m1, m2, m2])), forces=forces,
+        contacts=contacts)
+
+
+def problem(q0, v0, *, horizon, n_intervals, u_lower, u_upper, running):
+    tf = time_freeze(two_masses())
+    return ContactProblem(system=tf, q0=q0, v0=v0, horizon=horizon, n_intervals=n_intervals,
+                          u_lower=u_lower, u_upper=u_upper, running_cost=running(tf))
+
+
+@pytest.mark.parametrize("integrator", ["rk4", "radau"])
+def test_two_drops_touch_down_at_the_free_fall_times_and_stop(integrator):
+    """Both masses dropped, the first with a horizontal speed: each touchdown at
+    sqrt(2 h / g) (RK4 and Radau IIA integrate free fall exactly), the impact leaves it at rest
+    (Lambda_t = -m v_x inside the cone), and the multi-contact reference agrees."""
+    h1, h2, speed = 0.25, 0.6, 0.5  # touchdowns at 0.226 and 0.350 s
+    p = problem([0.0, h1, 0.0, h2], [speed, 0.0, 0.0, 0.0], horizon=0.5, n_intervals=5,
+                u_lower=[0.0] * 4, u_upper=[0.0] * 4, running=lambda tf: ca.DM(0.0))
+    t1, t2 = np.sqrt(2 * h1 / G), np.sqrt(2 * h2 / G)
+    # a guess off by 10 ms: the re-solve moves the switches to the closed forms
+    t = np.linspace(0.0, 0.5, 201)
+    x = np.zeros((len(t), 8))
+    x[:, 0] = speed * np.minimum(t, t1 + 0.01)
+    x[:, 1] = np.maximum(h1 - G * t**2 / 2, 0.0)
+    x[:, 3] = np.maximum(h2 - G * t**2 / 2, 0.0)
+    stances = (Stance((), 0.0, t1 + 0.01), Stance((0,), t1 + 0.01, t2 - 0.01),
+               Stance((0, 1), t2 - 0.01, 0.5))
+    plan = resolve_stances(p, stances, StanceOptions(tol=1e-10, integrator=integrator),
+                           guess=(t, x, np.zeros((5, 4))), verbose=False)
+    assert plan.solved, plan.ipopt_status
+    assert [s.closed for s in plan.stances] == [(), (0,), (0, 1)]
+    assert plan.stances[1].start == pytest.approx(t1, abs=1e-7)
+    assert plan.stances[2].start == pytest.approx(t2, abs=1e-7)
+    end = plan.boundary_states[-1]
+    assert end[0] == pytest.approx(speed * t1, abs=1e-6)  # slid no further after landing
+    np.testing.assert_allclose(end[[1, 3]], 0.0, atol=1e-7)
+    np.testing.assert_allclose(end[4:], 0.0, atol=1e-7)
+    assert plan.verification.passed, plan.verification.summary()
+    assert plan.verification.end_state_deviation < 1e-6
+
+
+def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens():
+    """Mass 1 rests and is pushed sideways as hard as it can while it sticks: the push
+    reaches c mu m g (the cone's edge) and it does not move. Mass 2 lifts off at the
+    control jump 0.2 s: the new control's vertical force is at least its weight."""
+    margin = 0.9
+    p = problem([0.0, 0.0, 1.0, 0.0], [0.0] * 4, horizon=0.4, n_intervals=4,
+                u_lower=[-20.0, 0.0, 0.0, 0.0], u_upper=[20.0, 0.0, 0.0, 40.0],
+                running=lambda tf: (tf.u[0] - 20.0) ** 2 + 1e-2 * tf.u[3] ** 2
+                + 1e5 * (tf.y[tf.q_index][3] - 0.05) ** 2 * (tf.y[tf.clock_index] > 0.3))
+    t = np.linspace(0.0, 0.4, 41)
+    x = np.zeros((len(t), 8))
+    x[:, 2] = 1.0
+    x[:, 3] = np.where(t > 0.2, 0.5 * (t - 0.2), 0.0)
+    stances = (Stance((0, 1), 0.0, 0.2), Stance((0,), 0.2, 0.4))
+    plan = resolve_stances(p, stances, StanceOptions(cone_margin=margin, tol=1e-10),
+                           guess=(t, x, np.zeros((4, 4))), verbose=False)
+    assert plan.solved, plan.ipopt_status
+    np.testing.assert_allclose(plan.u[:, 0], margin * MU * MASSES[0] * G, rtol=1e-6)
+    np.testing.assert_allclose(plan.x[:, [0, 1]], [[0.0, 0.0]] * len(plan.x), atol=1e-7)
+    assert plan.u[2, 3] >= MASSES[1] * G - 1e-6  # it opens: u_z >= m g at the jump
+    assert np.all(plan.x[plan.t < 0.2 - 1e-9, 3] < 1e-7)  # mass 2 stood until then
+    assert plan.boundary_states[-1, 3] > 0.01
+    assert plan.verification.passed, plan.verification.summary()
+
+
+def test_cone_rows_planar_and_spatial():
+    # planar (lambda_n, lambda_t) and 3-D (lambda_n, lambda_t1, lambda_t2)
+    rows = cone_rows([2.0, 1.0, 3.0, 1.0, 1.0], [2, 3], [0.5, 0.5], (0, 1), 1.0)
+    np.testing.assert_allclose([float(r) for r in rows], [2.0, 0.0, 2.0, 3.0, 2.25 - 2.0])
+
+
+def test_the_schedule_of_samples_keeps_the_order_of_touchdowns_and_lift_offs():
+    t = np.linspace(0.0, 1.0, 101)
+    gaps = np.zeros((101, 2))
+    gaps[(t > 0.06) & (t < 0.505), 1] = 0.05  # foot 1 swings, lands at 0.51 s
+    gaps[t > 0.525, 0] = 0.05  # foot 0 lifts off after 0.52 s
+    stances = stance_schedule(t, gaps, 1.0, 20)
+    # foot 0's lift-off goes to the control jump after foot 1's touchdown (0.55 s), not to
+    # the nearest one before it (0.5 s: a flight phase the plan did not have)
+    assert [s.closed for s in stances] == [(0, 1), (0,), (0, 1), (1,)]
+    assert stances[1].start == pytest.approx(0.05)
+    assert stances[2].start == pytest.approx(0.51)
+    assert stances[3].start == pytest.approx(0.55)
+    # a lift-off in the first interval goes to the first jump; one in the last is dropped
+    gaps[:] = 0.0
+    gaps[t > 0.015, 0] = 0.05
+    gaps[t > 0.985, 1] = 0.05
+    assert [(s.closed, s.start) for s in stance_schedule(t, gaps, 1.0, 20)] == [
+        ((0, 1), 0.0), ((1,), 0.05)]
+
+
+def test_bad_schedules_are_refused():
+    p = problem([0.0, 0.0, 1.0, 0.0], [0.0] * 4, horizon=0.4, n_intervals=4,
+                u_lower=[0.0] * 4, u_upper=[0.0] * 4, running=lambda tf: ca.DM(0.0))
+    guess = (np.array([0.0, 0.4]), np.zeros((2, 8)), np.zeros((4, 4)))
+    with pytest.raises(InvalidInput, match="control jump"):
+        resolve_stances(p, (Stance((0, 1), 0.0, 0.15), Stance((0,), 0.15, 0.4)),
+                        guess=guess, verbose=False)
+    with pytest.raises(InvalidInput, match="either closes contacts or opens"):
+        resolve_stances(p, (Stance((0,), 0.0, 0.15), Stance((1,), 0.15, 0.4)),
+                        guess=guess, verbose=False)
+    with pytest.raises(InvalidInput, match="statically indeterminate"):
+        twin = two_masses()  # both contacts on mass 1: the same rows twice
+        q, v, u = twin.q, twin.v, twin.u
+        same = ComplementarityLagrangianSystem(
+            q=q, v=v, u=u, mass_matrix=twin.mass_matrix, forces=twin.forces,
+            contacts=tuple(Contact(gap=q[1], tangents=ca.jacobian(q[0], q).T, mu=MU,
+                                   name=f"c{i}") for i in range(2)))
+        tf = time_freeze(same)
+        resolve_stances(ContactProblem(system=tf, q0=[0.0] * 4, v0=[0.0] * 4, horizon=0.4,
+                                       n_intervals=4, u_lower=[0.0] * 4, u_upper=[0.0] * 4,
+                                       running_cost=ca.DM(0.0)),
+                        (Stance((0, 1), 0.0, 0.4),), guess=guess, verbose=False)
+    with pytest.raises(InvalidInput, match="cone_margin"):
+        StanceOptions(cone_margin=1.5)

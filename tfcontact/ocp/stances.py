@@ -1,0 +1,797 @@
+"""The exact re-solve of a plan with several contacts along a fixed sequence of stances.
+
+The homotopy of `solve_contact` discovers which feet are down when; its relaxed plan
+(complementarity residual 1e-4) still holds a light leg on the ground after its torques
+let go and touches down a few milliseconds off (benchmarks/legged.md), so the reference
+restarted from its states parts from it. `resolve_stances` keeps the sequence of stances
+(which contacts are closed) and re-solves the OCP as a smooth NLP with the original
+system's dynamics, contact-accurate by construction:
+
+* a stance S (the closed contacts, each sticking): M a = f + J_S lambda with
+  J_S^T a + (dJ_S/dt)^T v = -(stabilisation) (index-reduced, Baumgarte: the normal rows
+  2 alpha v_n + alpha^2 gap, the tangential ones alpha v_t); at every node
+  lambda_n,i >= 0 and the cone ||lambda_t,i|| <= c mu_i lambda_n,i (c: `cone_margin`), the
+  open contacts' gaps >= 0;
+* a touchdown of contacts D (a stance S -> S + D) at a free time inside the control
+  interval its guess lies in: gap_i = 0 for i in D and the inelastic impact of all the
+  closed contacts S + D ending in stick, J^T v+ = 0 with the impulse
+  Lambda = -(J^T M^-1 J)^-1 J^T v-, each Lambda_n,i >= 0 and in its cone: the solution of
+  the velocity-level impact LCP of the multi-contact reference
+  (`tfcontact.verify.multicontact`) when every contact ends at rest;
+* a lift-off of contacts L (S -> S - L) at a control jump k T / N: with the new control
+  the remaining stance's dynamics give each lifting contact a normal acceleration
+  n_i^T a + (dn_i/dt)^T v >= 0 (the acceleration LCP then opens it). Inside a control
+  interval a sticking contact's force reaches zero only with its tangential force, which
+  the rigid model does not give (as in `tfcontact.ocp.polish`);
+* inside a stance the contact rows hold with both controls at each control jump.
+
+Controls are piecewise constant on the fixed grid k T / N; every piece between two
+switches is integrated by RK4 (multiple shooting, `nodes` per interval and
+`steps_per_node` RK4 steps between two nodes) or by Radau IIA collocation. The plan is
+checked by the multi-contact reference (the open-loop replay, local defects per control
+interval, the amplification of a kicked replay), the gaps and the cone at the nodes.
+
+Friction in slip is not modelled: every closed contact sticks (no-slip feet). The single
+frictional planar contact with slip phases is `tfcontact.ocp.polish`.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from tfcontact import interrupt
+from tfcontact.errors import InvalidInput, SolveFailed, positive_int
+from tfcontact.fesd.tableau import RadauIIA
+from tfcontact.native import blas_threads
+from tfcontact.ocp.contact import ContactProblem, ContactResult
+from tfcontact.ocp.polish import collocation_residuals
+from tfcontact.verify import (
+    EvaluationBudget,
+    MultiContactOptions,
+    ReplayedPlan,
+    Verification,
+    VerifyOptions,
+    end_state_check,
+    multicontact_local_defects,
+    replay_multicontact,
+    state_indices,
+)
+
+SOLVED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+SINGULAR_DELASSUS = 1e10
+"""A stance whose Delassus matrix has a larger condition number is refused."""
+PROGRESS_EVERY = 250
+"""A verbose re-solve prints a line every this many IPOPT iterations."""
+
+
+@dataclass(frozen=True)
+class StanceOptions:
+    """Settings of `resolve_stances`.
+
+    Args:
+        nodes: shooting nodes (RK4) or collocation elements (Radau) per control interval
+            (a piece of an interval cut by a touchdown gets its share, at least 2 nodes or
+            1 element).
+        steps_per_node: RK4 steps from one node to the next.
+        integrator: "rk4" (explicit RK4 multiple shooting; each node's steps one SX
+            function) or "radau": Radau IIA collocation with `radau_stages` stages (order
+            2 s - 1), every stage state a variable with the node rows (cheaper derivatives:
+            one right-hand side per stage instead of 4 steps_per_node).
+        baumgarte: alpha [1/s] of the closed contacts' stabilisation.
+        cone_margin: c of the node rows ||lambda_t|| <= c mu lambda_n. Below 1 for 3-D
+            contacts: the reference's mode decisions use a pyramid of 16 facets, 1.9 %
+            smaller than the cone.
+        flight_gap, contact_gap: `stance_schedule` opens a contact above `flight_gap` [m]
+            and closes it again below `contact_gap` [m].
+        switch_margin: touchdowns keep this fraction of a control interval from its ends.
+        tol, max_iter: IPOPT's.
+        blas_threads: threads of IPOPT's BLAS during the solve (None: as set).
+        end_state_tolerance, gap_tolerance, cone_tolerance: the verification's.
+        budget: model evaluations of the multi-contact reference for the replay and all
+            restarts together (`MultiContactReplay.budget`).
+    """
+
+    nodes: int = 4
+    steps_per_node: int = 2
+    integrator: str = "rk4"
+    radau_stages: int = 3
+    baumgarte: float = 20.0
+    cone_margin: float = 0.98
+    flight_gap: float = 5e-3
+    contact_gap: float = 1e-3
+    switch_margin: float = 0.02
+    tol: float = 1e-8
+    max_iter: int = 3000
+    blas_threads: int | None = 2
+    end_state_tolerance: float = VerifyOptions.end_state_tolerance
+    gap_tolerance: float = VerifyOptions.gap_tolerance
+    cone_tolerance: float = VerifyOptions.cone_tolerance
+    budget: int = 500_000
+
+    def __post_init__(self) -> None:
+        if self.integrator not in ("rk4", "radau"):
+            raise InvalidInput(f"`integrator` must be 'rk4' or 'radau', got {self.integrator!r}")
+        for name in ("nodes", "steps_per_node", "radau_stages", "max_iter", "budget"):
+            positive_int(getattr(self, name), name)
+        if self.blas_threads is not None:
+            positive_int(self.blas_threads, "blas_threads")
+        if not 0 < self.cone_margin <= 1:
+            raise InvalidInput(f"`cone_margin` must lie in (0, 1], got {self.cone_margin}")
+        if not 0 < self.contact_gap < self.flight_gap:
+            raise InvalidInput(f"need 0 < contact_gap < flight_gap, got {self.contact_gap}, "
+                               f"{self.flight_gap}")
+        if not 0 < self.switch_margin < 0.5:
+            raise InvalidInput(f"`switch_margin` must lie in (0, 0.5), got "
+                               f"{self.switch_margin}")
+        for name in ("baumgarte", "tol", "end_state_tolerance", "gap_tolerance",
+                     "cone_tolerance"):
+            if not getattr(self, name) > 0:
+                raise InvalidInput(f"`{name}` must be positive, got {getattr(self, name)}")
+
+
+@dataclass(frozen=True)
+class Stance:
+    """The contacts `closed` (indices into the system's contacts, each sticking) from
+    `start` to `end` [s]."""
+
+    closed: tuple[int, ...]
+    start: float
+    end: float
+
+
+def stance_schedule(t: np.ndarray, gaps: np.ndarray, horizon: float, n_intervals: int,
+                    options: StanceOptions | None = None) -> tuple[Stance, ...]:
+    """The stances of a plan's samples: a contact is closed while its gap stays below
+    `flight_gap`; it opens at the control jump k T / N nearest to its last sample before
+    the gap rises above it (a lift-off of `resolve_stances` is at a control jump), and
+    closes again at its first sample below `contact_gap` (a touchdown).
+
+    Args:
+        t: sample times [s], (n,); gaps: the contacts' gaps [m] there, (n, n_contacts).
+
+    Raises:
+        InvalidInput: a touchdown and a lift-off that fall together, or a contact that
+            lifts off and touches down again within one control interval.
+    """
+    options = options or StanceOptions()
+    t = np.asarray(t, dtype=float)
+    gaps = np.asarray(gaps, dtype=float).reshape(len(t), -1)
+    step = horizon / n_intervals
+    closed0, touchdowns, lift_offs = [], [], []  # (time, contact)
+    for i in range(gaps.shape[1]):
+        down = bool(gaps[0, i] <= options.contact_gap)
+        if down:
+            closed0.append(i)
+        for k in range(1, len(t)):
+            if down and gaps[k, i] > options.flight_gap:
+                lift_offs.append((float(t[k - 1]), i))
+                down = False
+            elif not down and gaps[k, i] < options.contact_gap and t[k] < horizon - 1e-9:
+                touchdowns.append((float(t[k]), i))
+                down = True
+    changes: dict[float, tuple[set[int], set[int]]] = {}  # time -> (closes, opens)
+    for at, i in touchdowns:
+        changes.setdefault(at, (set(), set()))[0].add(i)
+    for at, i in lift_offs:
+        # the nearest control jump that keeps the lift-off on its side of every
+        # touchdown (else the gait changes: a flight phase where one foot still stood)
+        if round(at / step) >= n_intervals:
+            continue  # at the end: the contact stays closed to T
+        low, high = math.floor(at / step), math.ceil(at / step)
+        candidates = sorted({max(low, 1), min(max(high, 1), n_intervals - 1)},
+                            key=lambda jump: abs(jump * step - at))
+        jump = next((j for j in candidates
+                     if all((td < at) == (td < j * step) for td, _ in touchdowns)),
+                    candidates[0])
+        changes.setdefault(jump * step, (set(), set()))[1].add(i)
+    stances = [Stance(tuple(closed0), 0.0, horizon)]
+    for at in sorted(changes):
+        closes, opens = changes[at]
+        if closes and opens:
+            raise InvalidInput(f"contacts {sorted(closes)} touch down and {sorted(opens)} lift "
+                               f"off together at {at:.4g} s: give them apart")
+        current = set(stances[-1].closed)
+        if closes & current or not opens <= current:
+            raise InvalidInput(f"contacts {sorted(closes | opens)} change twice within one "
+                               f"control interval near {at:.4g} s")
+        closed = tuple(sorted((current | closes) - opens))
+        stances[-1] = Stance(stances[-1].closed, stances[-1].start, at)
+        stances.append(Stance(closed, at, horizon))
+    return tuple(stances)
+
+
+def schedule_of(result: ContactResult, options: StanceOptions | None = None
+                ) -> tuple[Stance, ...]:
+    """`stance_schedule` of a time-freezing plan's physical samples."""
+    phys = result.physical
+    cls = result.system.cls
+    x = phys.y[:, state_indices(result.system)]
+    gaps = np.asarray(cls.function("gaps")(x[:, :cls.n_q].T)).T
+    return stance_schedule(phys.t, gaps, result.problem.horizon, result.problem.n_intervals,
+                           options)
+
+
+class StanceDynamics:
+    """The hybrid system's CasADi functions in x = (q, v) and u, per stance (a tuple of
+    closed contacts, all sticking): `rhs(S)`, the contact forces `force(S)` (per closed
+    contact lambda_n then lambda_t), the `opening(S, i)` normal acceleration of an open
+    contact i under stance S, the `impact(S)` ending with every contact of S at rest
+    (post-impact state and impulses), and `gaps` of every contact."""
+
+    def __init__(self, cls, alpha: float = 20.0) -> None:
+        if cls.v.numel() != cls.n_q:
+            raise InvalidInput("the stance re-solve needs n_q = n_v (no quaternion base)")
+        self.cls = cls
+        self.alpha = alpha
+        q, v, u = cls.q, cls.v, cls.u
+        self._x = ca.vertcat(q, v)
+        self._u = u
+        self._minv_f = ca.solve(cls.mass_matrix, cls.forces)
+        self.columns = []  # per contact: J_i = [n_i B_i] (frictionless: n_i)
+        for c in cls.contacts:
+            self.columns.append(ca.horzcat(c.normal, c.tangents) if c.has_friction
+                                else c.normal)
+        self.mu = [c.mu for c in cls.contacts]
+        self.gaps = ca.Function("gaps", [self._x], [ca.vertcat(*[c.gap for c in cls.contacts])])
+        self._cache: dict = {}
+
+    def _terms(self, closed: tuple[int, ...]):
+        cls, q, v = self.cls, self.cls.q, self.cls.v
+        jac = ca.horzcat(*[self.columns[i] for i in closed])
+        vel = ca.mtimes(jac.T, v)
+        drift = ca.jacobian(vel, q) @ v
+        stab = []
+        for i in closed:
+            vel_i = ca.mtimes(self.columns[i].T, v)
+            stab.append(2 * self.alpha * vel_i[0] + self.alpha**2 * cls.contacts[i].gap)
+            stab += [self.alpha * vel_i[j] for j in range(1, vel_i.shape[0])]
+        minv_j = ca.solve(cls.mass_matrix, jac)
+        delassus = ca.mtimes(jac.T, minv_j)
+        return jac, vel, drift, ca.vertcat(*stab), minv_j, delassus
+
+    def _stance(self, closed: tuple[int, ...]) -> dict:
+        if closed in self._cache:
+            return self._cache[closed]
+        x, u, v = self._x, self._u, self.cls.v
+        name = "s" + "_".join(str(i) for i in closed) if closed else "flight"
+        if not closed:
+            acc = self._minv_f
+            funcs = {"rhs": ca.Function(f"rhs_{name}", [x, u], [ca.vertcat(v, acc)]),
+                     "acc": acc, "force": None, "impact": None}
+        else:
+            jac, vel, drift, stab, minv_j, delassus = self._terms(closed)
+            lam = ca.solve(delassus, -(ca.mtimes(jac.T, self._minv_f) + drift + stab))
+            acc = self._minv_f + minv_j @ lam
+            impulse = -ca.solve(delassus, vel)
+            funcs = {"rhs": ca.Function(f"rhs_{name}", [x, u], [ca.vertcat(v, acc)]),
+                     "acc": acc,
+                     "force": ca.Function(f"force_{name}", [x, u], [lam]),
+                     "delassus": ca.Function(f"delassus_{name}", [x], [delassus]),
+                     "impact": ca.Function(f"impact_{name}", [x],
+                                           [ca.vertcat(self.cls.q, v + minv_j @ impulse),
+                                            impulse])}
+        self._cache[closed] = funcs
+        return funcs
+
+    def rhs(self, closed: tuple[int, ...]) -> ca.Function:
+        return self._stance(closed)["rhs"]
+
+    def force(self, closed: tuple[int, ...]) -> ca.Function:
+        """(x, u) -> the closed contacts' forces [N], per contact lambda_n then lambda_t."""
+        return self._stance(closed)["force"]
+
+    def delassus(self, closed: tuple[int, ...]) -> ca.Function:
+        """x -> J_S^T M^-1 J_S of a stance with closed contacts."""
+        return self._stance(closed)["delassus"]
+
+    def impact(self, closed: tuple[int, ...]) -> ca.Function:
+        """x- -> (x+, impulses [N s]) of an inelastic impact leaving S at rest."""
+        return self._stance(closed)["impact"]
+
+    def opening(self, closed: tuple[int, ...], i: int) -> ca.Function:
+        """(x, u) -> contact i's normal acceleration n_i^T a + (dn_i/dt)^T v under stance
+        `closed` (>= 0: it opens)."""
+        key = (closed, "opening", i)
+        if key not in self._cache:
+            q, v = self.cls.q, self.cls.v
+            normal = self.cls.contacts[i].normal
+            rate = ca.mtimes(normal.T, v)
+            acc = self._stance(closed)["acc"]
+            value = ca.mtimes(normal.T, acc) + ca.jacobian(rate, q) @ v
+            self._cache[key] = ca.Function(f"opening_{i}", [self._x, self._u], [value])
+        return self._cache[key]
+
+    def sizes(self, closed: tuple[int, ...]) -> list[int]:
+        """Force components of each closed contact (1 + its tangents)."""
+        return [self.columns[i].shape[1] for i in closed]
+
+    def rk4(self, closed: tuple[int, ...], steps: int) -> ca.Function:
+        """`steps` RK4 steps of length h / steps under stance `closed` as one SX function
+        (x, u, h) -> x+ (called from the NLP's MX graph: expanding every node's steps into
+        one SX graph took more than 15 GB for bolt)."""
+        key = (closed, "rk4", steps)
+        if key not in self._cache:
+            f = self.rhs(closed)
+            x = ca.SX.sym("x", self._x.shape[0])
+            u = ca.SX.sym("u", self._u.shape[0])
+            h = ca.SX.sym("h")
+            end = x
+            for _ in range(steps):
+                k1 = f(end, u)
+                k2 = f(end + h / (2 * steps) * k1, u)
+                k3 = f(end + h / (2 * steps) * k2, u)
+                k4 = f(end + h / steps * k3, u)
+                end = end + h / (6 * steps) * (k1 + 2 * k2 + 2 * k3 + k4)
+            self._cache[key] = ca.Function(f"rk4_{len(self._cache)}", [x, u, h], [end])
+        return self._cache[key]
+
+
+def cone_rows(values, sizes: list[int], mu: list[float], closed: tuple[int, ...],
+              margin: float) -> list:
+    """Expressions >= 0 that hold the closed contacts' forces (or impulses) in their cones:
+    lambda_n >= 0 and (c mu lambda_n)^2 - ||lambda_t||^2 >= 0 (planar: c mu lambda_n -+
+    lambda_t >= 0, linear). Numbers or CasADi expressions."""
+    rows = []
+    offset = 0
+    for size, i in zip(sizes, closed, strict=True):
+        normal = values[offset]
+        rows.append(normal)
+        if size == 2:
+            rows += [margin * mu[i] * normal - values[offset + 1],
+                     margin * mu[i] * normal + values[offset + 1]]
+        elif size == 3:
+            tangential = values[offset + 1:offset + 3]
+            rows.append((margin * mu[i] * normal) ** 2 - ca.sumsqr(tangential))
+        offset += size
+    return rows
+
+
+@dataclass(frozen=True, eq=False)
+class StancePlan:
+    """A plan with the exact hybrid dynamics along a fixed sequence of stances.
+
+    Attributes:
+        stances: the sequence with the re-solved touchdown times.
+        t, x: node times [s] and states (q, v), (n_nodes, 2 n_q); a touchdown has two
+            nodes at its time (before and after the impact).
+        u: controls per interval, (N, n_u); boundary_states: (q, v) at the control
+            jumps, (N + 1, 2 n_q).
+        cost, ipopt_status, iterations, solve_time (build and solve [s]),
+        verification: the multi-contact reference's checks.
+    """
+
+    stances: tuple[Stance, ...]
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    boundary_states: np.ndarray
+    cost: float
+    ipopt_status: str
+    iterations: int
+    solve_time: float
+    verification: Verification
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def solved(self) -> bool:
+        return self.ipopt_status in SOLVED
+
+    @property
+    def status(self) -> str:
+        if not self.solved:
+            return "nlp_failed"
+        return "converged" if self.verification.passed else "verification_failed"
+
+    @property
+    def success(self) -> bool:
+        return self.status == "converged"
+
+    def summary(self) -> str:
+        stances = ", ".join(f"{list(s.closed)} {s.start:.4f}-{s.end:.4f} s"
+                            for s in self.stances)
+        return "\n".join([
+            f"stances: {self.status} (IPOPT {self.ipopt_status}, {self.iterations} "
+            f"iterations, {self.solve_time:.1f} s), objective {self.cost:.6g}",
+            f"stances: closed contacts {stances}",
+            f"stances: {self.verification.summary()}",
+        ])
+
+
+def _interpolate(t: np.ndarray, x: np.ndarray, at: float) -> np.ndarray:
+    i = int(np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 2))
+    w = float(np.clip((at - t[i]) / max(t[i + 1] - t[i], 1e-12), 0.0, 1.0))
+    return (1 - w) * x[i] + w * x[i + 1]
+
+
+def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
+                    options: StanceOptions | None = None, *,
+                    guess: ContactResult | tuple[np.ndarray, np.ndarray, np.ndarray],
+                    verbose: bool = True) -> StancePlan:
+    """Re-solve a contact OCP along a sequence of stances with the exact hybrid dynamics
+    (module docstring), warm started from a guess, and verify it with the multi-contact
+    reference.
+
+    Args:
+        problem: the `ContactProblem` (its system supplies the dynamics; its bounds, path
+            and terminal constraints and cost are kept).
+        stances: the sequence (`stance_schedule`, `schedule_of`); consecutive stances
+            differ by touchdowns (contacts added) or lift-offs (removed, at a control
+            jump), not both.
+        guess: a time-freezing plan or (t, x, u): node times [s], states (n, 2 n_q) and
+            controls (N, n_u).
+        verbose: print the NLP's outcome and the summary.
+    """
+    options = options or StanceOptions()
+    stances = tuple(stances)
+    system = problem.system
+    cls = system.cls
+    n_q, n_u = cls.n_q, cls.n_u
+    n_int, horizon = problem.n_intervals, problem.horizon
+    dt = horizon / n_int
+    lift_offs: dict[int, int] = {}  # control jump k -> index of the stance it starts
+    touchdowns: list[int] = []  # indices of stances started by a touchdown
+    for j, (before, after) in enumerate(itertools.pairwise(stances), start=1):
+        added = set(after.closed) - set(before.closed)
+        removed = set(before.closed) - set(after.closed)
+        if added and removed or not (added or removed):
+            raise InvalidInput(f"stances {before.closed} -> {after.closed} at {after.start:.4g}"
+                               " s: a change either closes contacts or opens them")
+        if removed:
+            k = round(after.start / dt)
+            if abs(after.start - k * dt) > 1e-9 * horizon or not 0 < k < n_int:
+                raise InvalidInput(f"a lift-off at {after.start:.4g} s is not at a control "
+                                   f"jump k T / N inside the horizon (T / N = {dt:g} s)")
+            lift_offs[k] = j
+        else:
+            touchdowns.append(j)
+    start = time.perf_counter()
+    dyn = StanceDynamics(cls, options.baumgarte)
+    tableau = (RadauIIA(options.radau_stages).tableau() if options.integrator == "radau"
+               else None)
+    if isinstance(guess, ContactResult):
+        phys = guess.physical
+        guess = (phys.t, phys.y[:, state_indices(guess.system)], guess.u)
+    guess_t, guess_x, guess_u = (np.asarray(a, dtype=float) for a in guess)
+    for s in stances:  # the forces of a stance must be unique (not a box on two corners)
+        if not s.closed:
+            continue
+        w = np.asarray(dyn.delassus(s.closed)(_interpolate(guess_t, guess_x,
+                                                            0.5 * (s.start + s.end))))
+        if np.linalg.cond(w) > SINGULAR_DELASSUS:
+            raise InvalidInput(
+                f"the contacts {list(s.closed)} closed together are statically indeterminate "
+                f"(their Delassus matrix is singular, condition {np.linalg.cond(w):.1e}): the "
+                "stance re-solve needs contact constraints independent of each other (legs "
+                "with joints, not a rigid body on two corners)")
+    y_sym, u_sym = system.y, system.u
+    n_y = y_sym.numel()
+
+    def y_of(x, t):  # the time-freezing state layout of the problem's rows and costs
+        entries = [ca.MX(0)] * n_y
+        for i in range(n_q):
+            entries[system.q_index.start + i] = x[i]
+            entries[system.v_index.start + i] = x[n_q + i]
+        entries[system.clock_index] = t
+        return ca.vertcat(*entries)
+
+    path = problem.path
+    path_fn = None if path is None else ca.Function("path", [y_sym, u_sym], [path.expression])
+    running = ca.Function("running", [y_sym, u_sym], [problem.running_cost])
+    terminal_cost = ca.Function("terminal_cost", [y_sym], [problem.terminal_cost])
+    terminal = problem.terminal
+    terminal_fn = (None if terminal is None
+                   else ca.Function("terminal", [y_sym], [terminal.expression]))
+    lower = np.concatenate([problem.q_lower, problem.v_lower])
+    upper = np.concatenate([problem.q_upper, problem.v_upper])
+    bounded = [int(i) for i in np.flatnonzero(np.isfinite(lower) | np.isfinite(upper))]
+
+    opti = ca.Opti()
+    controls = opti.variable(n_int, n_u) if n_u else ca.MX(n_int, 0)
+    if n_u:
+        opti.subject_to(opti.bounded(np.tile(problem.u_lower, (n_int, 1)), controls,
+                                     np.tile(problem.u_upper, (n_int, 1))))
+        opti.set_initial(controls, np.clip(guess_u, problem.u_lower, problem.u_upper))
+    grid = [k * dt for k in range(n_int + 1)]
+    # each touchdown: a free fraction of the control interval its guess lies in
+    switch_at: dict[int, list[tuple[ca.MX, int]]] = {}
+    switch_times: dict[int, ca.MX] = {}
+    for j in touchdowns:
+        k = int(np.clip(math.floor(stances[j].start / dt), 0, n_int - 1))
+        m = options.switch_margin
+        fraction = opti.variable()
+        opti.subject_to(opti.bounded(m, fraction, 1 - m))
+        opti.set_initial(fraction, float(np.clip(stances[j].start / dt - k, m, 1 - m)))
+        if switch_at.get(k):
+            opti.subject_to(fraction - switch_at[k][-1][0] >= m)
+        switch_at.setdefault(k, []).append((fraction, j))
+        switch_times[j] = grid[k] + fraction * dt
+
+    def constrain_node(x, t, u, closed):
+        if bounded:
+            opti.subject_to(opti.bounded(lower[bounded], x[bounded], upper[bounded]))
+        if path_fn is not None:
+            size = path.expression.shape[0]
+            opti.subject_to(opti.bounded(np.broadcast_to(path.lower, size),
+                                         path_fn(y_of(x, t), u),
+                                         np.broadcast_to(path.upper, size)))
+        contact_rows(x, u, closed)
+
+    def contact_rows(x, u, closed):
+        open_ = [i for i in range(cls.n_contacts) if i not in closed]
+        if open_:
+            opti.subject_to(dyn.gaps(x)[open_] >= 0)
+        if closed:
+            lam = dyn.force(closed)(x, u)
+            for row in cone_rows(lam, dyn.sizes(closed), dyn.mu, closed,
+                                 options.cone_margin):
+                opti.subject_to(row >= 0)
+
+    x0 = np.concatenate([problem.q0, problem.v0])
+    x = opti.variable(2 * n_q)
+    opti.subject_to(x == x0)
+    opti.set_initial(x, x0)
+    nodes = [(0.0, x)]
+    boundary = [x]
+    cost = 0
+    current = 0  # the stance in force
+    for k in range(n_int):
+        u_k = controls[k, :].T
+        if k in lift_offs:  # the control jump opens contacts: they accelerate away
+            j = lift_offs[k]
+            for i in set(stances[j - 1].closed) - set(stances[j].closed):
+                opti.subject_to(dyn.opening(stances[j].closed, i)(x, u_k) >= 0)
+            current = j
+            contact_rows(x, u_k, stances[current].closed)
+        elif k > 0:  # the stance holds on both sides of the control jump
+            contact_rows(x, u_k, stances[current].closed)
+        cuts = ([(grid[k], grid[k], None)]
+                + [(switch_times[j], grid[k] + float(stances[j].start - grid[k]), j)
+                   for _, j in switch_at.get(k, [])]
+                + [(grid[k + 1], grid[k + 1], None)])
+        for (ta, ga, _), (tb, gb, jb) in itertools.pairwise(cuts):
+            closed = stances[current].closed
+            n_steps = max(1 if tableau is not None else 2,
+                          round(options.nodes * (gb - ga) / dt))
+            h = (tb - ta) / n_steps
+            for i in range(n_steps):
+                t0 = ta + i * h
+                if tableau is not None:  # one collocation element, its last stage its end
+                    stages = []
+                    for j in range(tableau.stages):
+                        z = opti.variable(2 * n_q)
+                        opti.set_initial(z, _interpolate(
+                            guess_t, guess_x, ga + (i + tableau.c[j]) * (gb - ga) / n_steps))
+                        stages.append(z)
+                    residuals = collocation_residuals(dyn.rhs(closed), tableau, x, stages,
+                                                      u_k, h)
+                    for j, (z, residual) in enumerate(zip(stages, residuals, strict=True)):
+                        opti.subject_to(residual == 0)
+                        t_stage = t0 + tableau.c[j] * h
+                        cost = cost + h * tableau.b[j] * running(y_of(z, t_stage), u_k)
+                        last = i == n_steps - 1 and j == tableau.stages - 1
+                        nodes.append((tb if last else t_stage, z))
+                        constrain_node(z, t_stage, u_k, closed)
+                    x = stages[-1]
+                    continue
+                x_next = dyn.rk4(closed, options.steps_per_node)(x, u_k, h)
+                cost = cost + h / 2 * (running(y_of(x, t0), u_k)
+                                       + running(y_of(x_next, t0 + h), u_k))
+                x = opti.variable(2 * n_q)
+                opti.subject_to(x == x_next)
+                opti.set_initial(x, _interpolate(guess_t, guess_x,
+                                                 ga + (i + 1) * (gb - ga) / n_steps))
+                t_node = tb if i == n_steps - 1 else t0 + h
+                nodes.append((t_node, x))
+                constrain_node(x, t_node, u_k, closed)
+            if jb is None:
+                continue
+            # a touchdown: the new contacts reach the ground, all closed ones end at rest
+            after = stances[jb].closed
+            for i in set(after) - set(closed):
+                opti.subject_to(dyn.gaps(x)[i] == 0)
+            post, impulse = dyn.impact(after)(x)
+            for row in cone_rows(impulse, dyn.sizes(after), dyn.mu, after,
+                                 options.cone_margin):
+                opti.subject_to(row >= 0)
+            x = opti.variable(2 * n_q)
+            opti.subject_to(x == post)
+            opti.set_initial(x, _interpolate(guess_t, guess_x, gb + 1e-6))
+            nodes.append((tb, x))
+            current = jb
+            constrain_node(x, tb, u_k, after)
+        boundary.append(x)
+    y_end = y_of(x, horizon)
+    if terminal_fn is not None:
+        size = terminal.expression.shape[0]
+        opti.subject_to(opti.bounded(np.broadcast_to(terminal.lower, size), terminal_fn(y_end),
+                                     np.broadcast_to(terminal.upper, size)))
+    opti.minimize(cost + terminal_cost(y_end))
+    opti.solver("ipopt", {"print_time": False, "expand": False},
+                {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0,
+                 "sb": "yes"})
+    if verbose:
+        clock = time.perf_counter()
+
+        def progress(i: int) -> None:
+            if i > 0 and i % PROGRESS_EVERY == 0:
+                print(f"    iteration {i}: objective {float(opti.debug.value(opti.f)):.6g}, "
+                      f"{time.perf_counter() - clock:.0f} s", flush=True)
+
+        opti.callback(progress)
+    try:
+        with interrupt.guard(), blas_threads(options.blas_threads):
+            sol = opti.solve()
+    except RuntimeError:
+        sol = opti.debug
+    stats = sol.stats()
+    status = str(stats.get("return_status", "unknown"))
+    iterations = int(stats.get("iter_count", 0))
+    u_value = (np.asarray(sol.value(controls)).reshape(n_int, n_u) if n_u
+               else np.zeros((n_int, 0)))
+    node_x = np.array([np.asarray(sol.value(xn)).ravel() for _, xn in nodes])
+    times = np.array([float(sol.value(tn)) if isinstance(tn, ca.MX) else float(tn)
+                      for tn, _ in nodes])
+    boundary_x = np.array([np.asarray(sol.value(b)).ravel() for b in boundary])
+    solved_stances = []
+    for j, s in enumerate(stances):
+        begin = float(sol.value(switch_times[j])) if j in switch_times else s.start
+        solved_stances.append(Stance(s.closed, begin, s.end))
+    solved_stances = tuple(Stance(s.closed, s.start, nxt.start) for s, nxt in
+                           zip(solved_stances, solved_stances[1:], strict=False)) + (
+        Stance(solved_stances[-1].closed, solved_stances[-1].start, horizon),)
+    solve_time = time.perf_counter() - start
+    verification = verify_stances(problem, solved_stances, times, node_x, u_value,
+                                  boundary_x, options)
+    plan = StancePlan(stances=solved_stances, t=times, x=node_x, u=u_value,
+                      boundary_states=boundary_x, cost=float(sol.value(opti.f)),
+                      ipopt_status=status, iterations=iterations, solve_time=solve_time,
+                      verification=verification)
+    if verbose:
+        print(plan.summary(), flush=True)
+    return plan
+
+
+def verify_stances(problem: ContactProblem, stances: tuple[Stance, ...], t: np.ndarray,
+                   x: np.ndarray, u: np.ndarray, boundary_states: np.ndarray,
+                   options: StanceOptions | None = None) -> Verification:
+    """The checks of a stance plan given by its arrays: the multi-contact reference
+    replays the controls open loop from the start and restarts on each control interval
+    from the plan's state (local defects; an open-loop unstable plan passes on them with
+    the kicked replay's amplification, `end_state_check`); the gaps at the nodes; the
+    closed contacts' forces in their cones (recomputed from the nodes' states and
+    controls) and the node times non-decreasing up to the horizon."""
+    options = options or StanceOptions()
+    cls = problem.system.cls
+    n_int, horizon = problem.n_intervals, problem.horizon
+    t, x, u = (np.asarray(a, dtype=float) for a in (t, x, u))
+    boundary_states = np.asarray(boundary_states, dtype=float)
+    if boundary_states.shape != (n_int + 1, 2 * cls.n_q) or u.shape != (n_int, cls.n_u):
+        raise InvalidInput(f"`boundary_states` {boundary_states.shape} and `u` {u.shape} do "
+                           f"not fit the problem ({n_int + 1}, {2 * cls.n_q}), "
+                           f"({n_int}, {cls.n_u})")
+    clocks = np.arange(n_int + 1) * horizon / n_int
+    x0 = np.concatenate([problem.q0, problem.v0])
+    replayed = ReplayedPlan(cls=cls, x0=x0, clocks=clocks, states=boundary_states,
+                            controls=u, horizon=horizon)
+    simulation = MultiContactOptions(start_gap_tolerance=max(options.gap_tolerance, 1e-12))
+    budget = EvaluationBudget(options.budget)
+    notes: list[str] = []
+    sim = replay_multicontact(cls, x0, clocks, u, horizon,
+                              options=budget.options(simulation))
+    budget.spend(sim.n_rhs)
+    defects = multicontact_local_defects(replayed, [(k, k + 1) for k in range(n_int)],
+                                         options.gap_tolerance, simulation, budget)
+    if budget.skipped:
+        notes.append(f"the reference used up its budget of {options.budget} model "
+                     f"evaluations: {budget.skipped} local-defect restarts not run")
+    if sim.success:
+        deviation = sim.deviation_at(horizon, boundary_states[-1])
+        reference_end = sim.final_state()
+        times = np.round([imp.time for imp in sim.impacts], 4).tolist()
+        method = (f"event-driven multi-contact reference (DOP853, contact LCPs, inelastic "
+                  f"frictional impacts), {len(times)} impacts at t = {times} s, "
+                  f"{len(sim.events)} contact-mode changes")
+    else:
+        deviation, reference_end = math.inf, None
+        method = "event-driven multi-contact reference (stopped)"
+        notes.append(f"multi-contact reference stopped at t = {sim.t[-1]:.6g} s: "
+                     f"{sim.message}")
+
+    def replay_end(start: np.ndarray) -> np.ndarray:
+        kicked = replay_multicontact(cls, start, clocks, u, horizon,
+                                     options=EvaluationBudget(options.budget).options(
+                                         simulation))
+        if not kicked.success:
+            raise SolveFailed(f"kicked multi-contact replay stopped: {kicked.message}", kicked)
+        return kicked.final_state()
+
+    end_ok, defect_sum, amplification = end_state_check(
+        replayed, options.end_state_tolerance, deviation, defects, reference_end, notes,
+        replay_end)
+    dyn = StanceDynamics(cls, options.baumgarte)
+    min_gap = float(np.min(np.asarray(dyn.gaps(x.T))))
+    # the closed contacts' forces at both ends of each segment between two nodes
+    starts = np.array([s.start for s in stances])
+    worst, largest = 0.0, 0.0
+    dt = horizon / n_int
+    for i in range(len(t) - 1):
+        if t[i + 1] <= t[i]:
+            continue
+        middle = 0.5 * (t[i] + t[i + 1])
+        closed = stances[int(np.searchsorted(starts, middle)) - 1].closed
+        if not closed:
+            continue
+        u_k = u[min(int(middle / dt), n_int - 1)]
+        for j in (i, i + 1):
+            lam = np.asarray(dyn.force(closed)(x[j], u_k)).ravel()
+            rows = cone_rows(lam, dyn.sizes(closed), dyn.mu, closed, 1.0)
+            worst = max(worst, -min(float(r) for r in rows))
+            largest = max(largest, float(np.max(np.abs(lam))))
+    node_t = t
+    monotone = bool(np.all(np.diff(node_t) >= 0.0))
+    end_error = abs(float(node_t[-1]) - horizon)
+    cone_ok = worst <= options.cone_tolerance * max(largest, 1e-12)
+    notes.append(f"cone and normal forces checked at the nodes: worst violation {worst:.2e}"
+                 f" against the largest force {largest:.3g} N")
+    passed = (end_ok and min_gap >= -options.gap_tolerance and cone_ok and monotone
+              and end_error <= 1e-9 * horizon)
+    return Verification(
+        passed=bool(passed), method=method, end_state_deviation=deviation, min_gap=min_gap,
+        friction_cone_violation=worst, clock_monotone=monotone, clock_end_error=end_error,
+        tolerances={"end_state": options.end_state_tolerance, "gap": options.gap_tolerance,
+                    "cone": options.cone_tolerance},
+        notes=tuple(notes), dissipation_violation=float("nan"), local_defects=defects,
+        defect_sum=defect_sum, open_loop_amplification=amplification,
+        open_loop_unstable=bool(end_ok and deviation > options.end_state_tolerance))
+
+
+def node_values(plan: StancePlan, cls, baumgarte: float = StanceOptions.baumgarte
+                ) -> dict[str, np.ndarray]:
+    """Per node of a stance plan: `closed` (n, n_contacts) which contacts are closed, the
+    control `u` that drives it, `gap` and `normal_velocity` per contact, and per contact
+    the `force` (lambda_n, lambda_t...) [N] of the stance (zero when open) and the
+    `impulse` (Lambda_n, Lambda_t...) [N s] of a touchdown at its post-impact node, both
+    padded to (n, n_contacts, 3). A node's stance and control are those of the segment
+    that ends at it (the first node: the first stance's and control's); a post-impact
+    node is in the stance that starts there."""
+    dyn = StanceDynamics(cls, baumgarte)
+    t, x, u = plan.t, plan.x, plan.u
+    n, n_c = len(t), cls.n_contacts
+    n_int = len(u)
+    horizon = plan.stances[-1].end
+    dt = horizon / n_int
+    starts = np.array([s.start for s in plan.stances])
+    closed_mask = np.zeros((n, n_c), dtype=bool)
+    controls = np.zeros((n, u.shape[1]))
+    forces = np.zeros((n, n_c, 3))
+    impulses = np.zeros((n, n_c, 3))
+
+    def scatter(target: np.ndarray, values, closed: tuple[int, ...]) -> None:
+        values = np.asarray(values, dtype=float).ravel()
+        offset = 0
+        for size, i in zip(dyn.sizes(closed), closed, strict=True):
+            target[i, :size] = values[offset:offset + size]
+            offset += size
+
+    for k in range(n):
+        touchdown = k > 0 and t[k] == t[k - 1]
+        at = t[0] if k == 0 else (t[k] if touchdown else 0.5 * (t[k - 1] + t[k]))
+        closed = plan.stances[max(int(np.searchsorted(starts, at, side="right")) - 1, 0)].closed
+        controls[k] = u[min(int(at / dt), n_int - 1)]
+        closed_mask[k, list(closed)] = True
+        if touchdown:
+            scatter(impulses[k], dyn.impact(closed)(x[k - 1])[1], closed)
+        if closed:
+            scatter(forces[k], dyn.force(closed)(x[k], controls[k]), closed)
+    normals = cls.function("normals")
+    velocities = np.array([np.asarray(normals(xk[:cls.n_q])).T @ xk[cls.n_q:] for xk in x])
+    return {"closed": closed_mask, "u": controls,
+            "gap": np.asarray(dyn.gaps(x.T)).T.reshape(n, n_c),
+            "normal_velocity": velocities.reshape(n, n_c), "force": forces,
+            "impulse": impulses}
