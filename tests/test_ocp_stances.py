@@ -149,3 +149,34 @@ def test_bad_schedules_are_refused():
                         (Stance((0, 1), 0.0, 0.4),), guess=guess, verbose=False)
     with pytest.raises(InvalidInput, match="cone_margin"):
         StanceOptions(cone_margin=1.5)
+
+
+def test_an_open_contact_with_a_slip_gain_lands_without_sliding():
+    """`open_slip_gains`: where mass 1 is open, v_x^2 <= K z; dropped with a horizontal
+    speed it must brake to v_x = 0 by its touchdown (without the rows the impact stops it:
+    the first test)."""
+    h, speed, gain = 0.25, 0.5, 100.0
+    p = problem([0.0, h, 1.0, 0.0], [speed, 0.0, 0.0, 0.0], horizon=0.4, n_intervals=4,
+                u_lower=[-20.0, 0.0, 0.0, 0.0], u_upper=[20.0, 0.0, 0.0, 0.0],
+                running=lambda tf: 1e-3 * tf.u[0] ** 2)
+    t1 = np.sqrt(2 * h / G)  # 0.226 s: the vertical motion has no control
+    t = np.linspace(0.0, 0.4, 81)
+    x = np.zeros((len(t), 8))
+    x[:, 0] = speed * np.minimum(t, t1)
+    x[:, 1] = np.maximum(h - G * t**2 / 2, 0.0)
+    x[:, 2] = 1.0
+    stances = (Stance((1,), 0.0, t1), Stance((0, 1), t1, 0.4))
+    plan = resolve_stances(p, stances, StanceOptions(open_slip_gains=(gain, None), tol=1e-10),
+                           guess=(t, x, np.zeros((4, 4))), verbose=False)
+    assert plan.solved, plan.ipopt_status
+    assert plan.stances[1].start == pytest.approx(t1, abs=1e-7)
+    before = np.flatnonzero(plan.t <= plan.stances[1].start)[-2]  # the pre-impact node
+    assert plan.t[before] == pytest.approx(t1, abs=1e-7)
+    # v_x = 0 where it lands (0.5 m/s without the rows): to the square root of IPOPT's
+    # constraint accuracy, the row being quadratic in v_x at zero gap
+    assert abs(plan.x[before, 4]) < 2e-4
+    flying = plan.t < t1 - 1e-9
+    assert np.all(plan.x[flying, 4] ** 2 <= gain * plan.x[flying, 1] + 1e-9)
+    assert plan.verification.passed, plan.verification.summary()
+    with pytest.raises(InvalidInput, match="open_slip_gains"):
+        StanceOptions(open_slip_gains=(0.0, None))

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from tfcontact.errors import InvalidInput, positive_int
+from tfcontact.ocp.stances import StanceOptions
 from tfcontact.scenes import monoped_exact
 from tfcontact.scenes.pipeline import (
     Discover,
@@ -112,7 +113,10 @@ def task_plan(source: str | Path) -> Plan:
 
     # one contact: its sequence with slip phases (`polish`); several: the stances found,
     # where the task's path rows (its no-slip rows: `build_task`) hold by construction
-    resolve = ExactResolve() if len(data.contacts) == 1 else StanceResolve(keep_path=False)
+    # (an open no-slip contact keeps v_t^2 <= K gap: it does not skim the ground)
+    gains = tuple(c.no_slip_gain if c.no_slip else None for c in data.contacts)
+    resolve = (ExactResolve() if len(data.contacts) == 1 else StanceResolve(
+        StanceOptions(open_slip_gains=gains), keep_path=False))
     stages = (Discover(build), resolve) if data.exact_resolve else (Discover(build),)
     return Plan(name=data.name, summary=data.description or f"task file {path}",
                 tasks=("task",), stages=stages)

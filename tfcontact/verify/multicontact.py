@@ -614,7 +614,8 @@ class _Simulator:
         for i in closed:
             if model.n_t[i]:
                 vt = terms.j[:, model.tangent_cols(i)].T @ x[n:]
-                speed = float(np.linalg.norm(vt))
+                with np.errstate(under="ignore"):  # a resting contact's speed may be ~1e-160
+                    speed = float(np.linalg.norm(vt))
                 if speed <= opt.velocity_tolerance:
                     at_rest.append(i)
                 else:
