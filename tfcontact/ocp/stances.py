@@ -40,7 +40,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
@@ -393,7 +393,6 @@ class StancePlan:
     iterations: int
     solve_time: float
     verification: Verification
-    notes: tuple[str, ...] = field(default=())
 
     @property
     def solved(self) -> bool:
@@ -575,8 +574,7 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
         elif k > 0:  # the stance holds on both sides of the control jump
             contact_rows(x, u_k, stances[current].closed)
         cuts = ([(grid[k], grid[k], None)]
-                + [(switch_times[j], grid[k] + float(stances[j].start - grid[k]), j)
-                   for _, j in switch_at.get(k, [])]
+                + [(switch_times[j], stances[j].start, j) for _, j in switch_at.get(k, [])]
                 + [(grid[k + 1], grid[k + 1], None)])
         for (ta, ga, _), (tb, gb, jb) in itertools.pairwise(cuts):
             closed = stances[current].closed
