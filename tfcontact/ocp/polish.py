@@ -45,11 +45,10 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from tfcontact import interrupt
 from tfcontact.errors import InvalidInput, TfcontactError, positive_int
 from tfcontact.fesd.tableau import RadauIIA
-from tfcontact.native import blas_threads
 from tfcontact.ocp.contact import ContactProblem, ContactResult
+from tfcontact.ocp.nodes import NodeFunctions, interpolate, report_progress, solve_guarded
 from tfcontact.verify import (
     LOCAL_DEFECT_IMPACT_WINDOW,
     ReplayedPlan,
@@ -63,8 +62,6 @@ from tfcontact.verify import (
 )
 
 STICK, FLIGHT = "stick", "flight"
-PROGRESS_EVERY = 250
-"""A verbose re-solve prints a line every this many IPOPT iterations."""
 CLOCK_TOLERANCE = 1e-9
 """A plan's last node may differ from the horizon by this fraction of it (round-off)."""
 TRANSITIONS = {(STICK, "slip+"), (STICK, "slip-"), ("slip+", FLIGHT), ("slip-", FLIGHT),
@@ -410,12 +407,6 @@ def collocation_residuals(rhs, tableau, x, stages, u, h) -> list:
             for j, z in enumerate(stages)]
 
 
-def _interpolate(t: np.ndarray, x: np.ndarray, at: float) -> np.ndarray:
-    i = int(np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 2))
-    w = float(np.clip((at - t[i]) / max(t[i + 1] - t[i], 1e-12), 0.0, 1.0))
-    return (1 - w) * x[i] + w * x[i + 1]
-
-
 def guess_from_result(result: ContactResult) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t, x, u) of a time-freezing plan as a guess of `polish_contact`: its physical
     trajectory's times and states x = (q, v) (frozen pieces dropped) and its controls."""
@@ -478,25 +469,10 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
         raise InvalidInput("`guess` must be a ContactResult or a tuple (t, x, u) of node "
                            f"times, states and controls, got {type(guess).__name__}")
     guess_t, guess_x, guess_u = guess
-    y_sym, u_sym = system.y, system.u
-    n_y = y_sym.numel()
-
-    def y_of(x, t):
-        # the time-freezing state layout of the problem's constraints and costs
-        entries = [ca.MX(0)] * n_y
-        for i in range(n_q):
-            entries[system.q_index.start + i] = x[i]
-            entries[system.v_index.start + i] = x[n_q + i]
-        entries[system.clock_index] = t
-        return ca.vertcat(*entries)
-
-    path = problem.path
-    path_fn = None if path is None else ca.Function("path", [y_sym, u_sym], [path.expression])
-    running = ca.Function("running", [y_sym, u_sym], [problem.running_cost])
-    terminal_cost = ca.Function("terminal_cost", [y_sym], [problem.terminal_cost])
-    terminal = problem.terminal
-    terminal_fn = (None if terminal is None
-                   else ca.Function("terminal", [y_sym], [terminal.expression]))
+    functions = NodeFunctions.of(problem)
+    y_of, path, path_fn = functions.y_of, functions.path, functions.path_fn
+    running, terminal_cost = functions.running, functions.terminal_cost
+    terminal, terminal_fn = functions.terminal, functions.terminal_fn
 
     opti = ca.Opti()
     controls = opti.variable(n_int, n_u) if n_u else ca.MX(n_int, 0)
@@ -540,7 +516,7 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     touchdown_signs = {}
     for j, phase in enumerate(phases[1:]):
         if phase.mode == STICK and phases[j].mode == FLIGHT:
-            before = _interpolate(guess_t, guess_x, max(phase.start - 1e-3, 0.0))
+            before = interpolate(guess_t, guess_x, max(phase.start - 1e-3, 0.0))
             v_t = float(np.asarray(dyn.velocity(before)).ravel()[1])
             touchdown_signs[j] = 1.0 if v_t >= 0 else -1.0
     x0 = np.concatenate([problem.q0, problem.v0])
@@ -614,7 +590,7 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
                     stages = []
                     for j in range(tableau.stages):
                         z = opti.variable(2 * n_q)
-                        opti.set_initial(z, _interpolate(
+                        opti.set_initial(z, interpolate(
                             guess_t, guess_x, ga + (i + tableau.c[j]) * (gb - ga) / n_steps))
                         stages.append(z)
                     for j, (z, residual) in enumerate(zip(
@@ -641,7 +617,7 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
                 x = opti.variable(2 * n_q)
                 opti.subject_to(x == x_next)
                 t_guess = ga + (i + 1) * (gb - ga) / n_steps
-                opti.set_initial(x, _interpolate(guess_t, guess_x, t_guess))
+                opti.set_initial(x, interpolate(guess_t, guess_x, t_guess))
                 nodes.append((tb if i == n_steps - 1 else ta + (i + 1) * h, x))
                 constrain_node(x, ta + (i + 1) * h, u_k, mode)
             if jb is None:
@@ -664,7 +640,7 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
                 impulses.append(impulse)
                 x = opti.variable(2 * n_q)
                 opti.subject_to(x == post)
-                opti.set_initial(x, _interpolate(guess_t, guess_x, gb))
+                opti.set_initial(x, interpolate(guess_t, guess_x, gb))
                 nodes.append((tb, x))
                 constrain_node(x, tb, u_k, STICK)
             mode_index = jb + 1
@@ -678,25 +654,14 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     opti.solver("ipopt", {"print_time": False, "expand": options.expand},
                 {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0,
                  "sb": "yes"})
-    if verbose:  # a long solve says where it is
-        clock = time.perf_counter()
-
-        def progress(i: int) -> None:
-            if i > 0 and i % PROGRESS_EVERY == 0:
-                print(f"    iteration {i}: objective {float(opti.debug.value(opti.f)):.6g}, "
-                      f"{time.perf_counter() - clock:.0f} s", flush=True)
-
-        opti.callback(progress)
+    if verbose:
+        report_progress(opti)
     history = []
     status, iterations = "", 0
     values = None
     for c in options.cone_margins:
         opti.set_value(margin, c)
-        try:
-            with interrupt.guard(), blas_threads(options.blas_threads):
-                sol = opti.solve()
-        except RuntimeError:
-            sol = opti.debug
+        sol = solve_guarded(opti, options.blas_threads)
         stats = sol.stats()
         status = str(stats.get("return_status", "unknown"))
         n_it = int(stats.get("iter_count", 0))

@@ -45,11 +45,10 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from tfcontact import interrupt
 from tfcontact.errors import InvalidInput, SolveFailed, positive_int
 from tfcontact.fesd.tableau import RadauIIA
-from tfcontact.native import blas_threads
 from tfcontact.ocp.contact import ContactProblem, ContactResult
+from tfcontact.ocp.nodes import NodeFunctions, interpolate, report_progress, solve_guarded
 from tfcontact.ocp.polish import collocation_residuals
 from tfcontact.verify import (
     EvaluationBudget,
@@ -66,8 +65,6 @@ from tfcontact.verify import (
 SOLVED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 SINGULAR_DELASSUS = 1e10
 """A stance whose Delassus matrix has a larger condition number is refused."""
-PROGRESS_EVERY = 250
-"""A verbose re-solve prints a line every this many IPOPT iterations."""
 
 
 @dataclass(frozen=True)
@@ -419,12 +416,6 @@ class StancePlan:
         ])
 
 
-def _interpolate(t: np.ndarray, x: np.ndarray, at: float) -> np.ndarray:
-    i = int(np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 2))
-    w = float(np.clip((at - t[i]) / max(t[i + 1] - t[i], 1e-12), 0.0, 1.0))
-    return (1 - w) * x[i] + w * x[i + 1]
-
-
 def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                     options: StanceOptions | None = None, *,
                     guess: ContactResult | tuple[np.ndarray, np.ndarray, np.ndarray],
@@ -477,7 +468,7 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     for s in stances:  # the forces of a stance must be unique (not a box on two corners)
         if not s.closed:
             continue
-        w = np.asarray(dyn.delassus(s.closed)(_interpolate(guess_t, guess_x,
+        w = np.asarray(dyn.delassus(s.closed)(interpolate(guess_t, guess_x,
                                                             0.5 * (s.start + s.end))))
         if np.linalg.cond(w) > SINGULAR_DELASSUS:
             raise InvalidInput(
@@ -485,26 +476,11 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                 f"(their Delassus matrix is singular, condition {np.linalg.cond(w):.1e}): the "
                 "stance re-solve needs contact constraints independent of each other (legs "
                 "with joints, not a rigid body on two corners)")
-    y_sym, u_sym = system.y, system.u
-    n_y = y_sym.numel()
-
-    def y_of(x, t):  # the time-freezing state layout of the problem's rows and costs
-        entries = [ca.MX(0)] * n_y
-        for i in range(n_q):
-            entries[system.q_index.start + i] = x[i]
-            entries[system.v_index.start + i] = x[n_q + i]
-        entries[system.clock_index] = t
-        return ca.vertcat(*entries)
-
-    path = problem.path
-    path_fn = None if path is None else ca.Function("path", [y_sym, u_sym], [path.expression])
-    running = ca.Function("running", [y_sym, u_sym], [problem.running_cost])
-    terminal_cost = ca.Function("terminal_cost", [y_sym], [problem.terminal_cost])
-    terminal = problem.terminal
-    terminal_fn = (None if terminal is None
-                   else ca.Function("terminal", [y_sym], [terminal.expression]))
-    lower = np.concatenate([problem.q_lower, problem.v_lower])
-    upper = np.concatenate([problem.q_upper, problem.v_upper])
+    functions = NodeFunctions.of(problem)
+    y_of, path, path_fn = functions.y_of, functions.path, functions.path_fn
+    running, terminal_cost = functions.running, functions.terminal_cost
+    terminal, terminal_fn = functions.terminal, functions.terminal_fn
+    lower, upper = functions.lower, functions.upper
     bounded = [int(i) for i in np.flatnonzero(np.isfinite(lower) | np.isfinite(upper))]
     gains = options.open_slip_gains or (None,) * cls.n_contacts
     if len(gains) != cls.n_contacts:
@@ -587,7 +563,7 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                     stages = []
                     for j in range(tableau.stages):
                         z = opti.variable(2 * n_q)
-                        opti.set_initial(z, _interpolate(
+                        opti.set_initial(z, interpolate(
                             guess_t, guess_x, ga + (i + tableau.c[j]) * (gb - ga) / n_steps))
                         stages.append(z)
                     residuals = collocation_residuals(dyn.rhs(closed), tableau, x, stages,
@@ -606,7 +582,7 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                                        + running(y_of(x_next, t0 + h), u_k))
                 x = opti.variable(2 * n_q)
                 opti.subject_to(x == x_next)
-                opti.set_initial(x, _interpolate(guess_t, guess_x,
+                opti.set_initial(x, interpolate(guess_t, guess_x,
                                                  ga + (i + 1) * (gb - ga) / n_steps))
                 t_node = tb if i == n_steps - 1 else t0 + h
                 nodes.append((t_node, x))
@@ -623,7 +599,7 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                 opti.subject_to(row >= 0)
             x = opti.variable(2 * n_q)
             opti.subject_to(x == post)
-            opti.set_initial(x, _interpolate(guess_t, guess_x, gb + 1e-6))
+            opti.set_initial(x, interpolate(guess_t, guess_x, gb + 1e-6))
             nodes.append((tb, x))
             current = jb
             constrain_node(x, tb, u_k, after)
@@ -638,19 +614,8 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                 {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0,
                  "sb": "yes"})
     if verbose:
-        clock = time.perf_counter()
-
-        def progress(i: int) -> None:
-            if i > 0 and i % PROGRESS_EVERY == 0:
-                print(f"    iteration {i}: objective {float(opti.debug.value(opti.f)):.6g}, "
-                      f"{time.perf_counter() - clock:.0f} s", flush=True)
-
-        opti.callback(progress)
-    try:
-        with interrupt.guard(), blas_threads(options.blas_threads):
-            sol = opti.solve()
-    except RuntimeError:
-        sol = opti.debug
+        report_progress(opti)
+    sol = solve_guarded(opti, options.blas_threads)
     stats = sol.stats()
     status = str(stats.get("return_status", "unknown"))
     iterations = int(stats.get("iter_count", 0))

@@ -1,0 +1,102 @@
+"""What the exact re-solves (`polish`: one contact; `stances`: several) share: a contact
+problem's rows and costs as functions of a node's state x = (q, v), its time and control,
+a guess read off a sampled trajectory, and an Opti solve that reports its progress and
+stops on Ctrl-C."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from tfcontact import interrupt
+from tfcontact.native import blas_threads
+
+PROGRESS_EVERY = 250
+"""A verbose re-solve prints a line every this many IPOPT iterations."""
+
+
+@dataclass(frozen=True, eq=False)
+class NodeFunctions:
+    """A `ContactProblem`'s rows and costs at a node (CasADi functions of the
+    time-freezing state y and control u; `y_of` builds y from x = (q, v) and the time).
+
+    Attributes:
+        path, terminal: the problem's constraints (None: none); path_fn, terminal_fn their
+            expressions as functions (None with them).
+        running, terminal_cost: the costs as functions.
+        lower, upper: the bounds of x = (q, v).
+    """
+
+    problem: object
+    path: object
+    path_fn: ca.Function | None
+    running: ca.Function
+    terminal_cost: ca.Function
+    terminal: object
+    terminal_fn: ca.Function | None
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @classmethod
+    def of(cls, problem) -> NodeFunctions:
+        system = problem.system
+        y_sym, u_sym = system.y, system.u
+        path, terminal = problem.path, problem.terminal
+        return cls(
+            problem=problem, path=path,
+            path_fn=None if path is None else ca.Function("path", [y_sym, u_sym],
+                                                          [path.expression]),
+            running=ca.Function("running", [y_sym, u_sym], [problem.running_cost]),
+            terminal_cost=ca.Function("terminal_cost", [y_sym], [problem.terminal_cost]),
+            terminal=terminal,
+            terminal_fn=(None if terminal is None
+                         else ca.Function("terminal", [y_sym], [terminal.expression])),
+            lower=np.concatenate([problem.q_lower, problem.v_lower]),
+            upper=np.concatenate([problem.q_upper, problem.v_upper]))
+
+    def y_of(self, x, t):
+        """The time-freezing state of the problem's rows and costs from a node's x = (q, v)
+        and time t (the other entries zero)."""
+        system = self.problem.system
+        n_q = system.cls.n_q
+        entries = [ca.MX(0)] * system.y.numel()
+        for i in range(n_q):
+            entries[system.q_index.start + i] = x[i]
+            entries[system.v_index.start + i] = x[n_q + i]
+        entries[system.clock_index] = t
+        return ca.vertcat(*entries)
+
+
+def interpolate(t: np.ndarray, x: np.ndarray, at: float) -> np.ndarray:
+    """The samples x (rows at times t) linearly interpolated at `at` (clipped to [t_0, t_n];
+    at a repeated time, an impact's two samples, the later one)."""
+    i = int(np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 2))
+    w = float(np.clip((at - t[i]) / max(t[i + 1] - t[i], 1e-12), 0.0, 1.0))
+    return (1 - w) * x[i] + w * x[i + 1]
+
+
+def report_progress(opti: ca.Opti) -> None:
+    """Print the objective and the elapsed time every `PROGRESS_EVERY` IPOPT iterations
+    of `opti`'s solves (a long solve says where it is)."""
+    clock = time.perf_counter()
+
+    def progress(i: int) -> None:
+        if i > 0 and i % PROGRESS_EVERY == 0:
+            print(f"    iteration {i}: objective {float(opti.debug.value(opti.f)):.6g}, "
+                  f"{time.perf_counter() - clock:.0f} s", flush=True)
+
+    opti.callback(progress)
+
+
+def solve_guarded(opti: ca.Opti, threads: int | None):
+    """`opti.solve()` with Ctrl-C stopping it (`tfcontact.interrupt.guard`) and IPOPT's BLAS
+    on `threads` threads; a failed solve's last iterate (`opti.debug`) instead of
+    CasADi's exception."""
+    try:
+        with interrupt.guard(), blas_threads(threads):
+            return opti.solve()
+    except RuntimeError:
+        return opti.debug
