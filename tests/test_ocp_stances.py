@@ -117,6 +117,14 @@ def test_the_schedule_of_samples_keeps_the_order_of_touchdowns_and_lift_offs():
     assert stances[1].start == pytest.approx(0.05)
     assert stances[2].start == pytest.approx(0.51)
     assert stances[3].start == pytest.approx(0.55)
+    # a touchdown sampled at a control jump where a lift-off goes too: after it, in the
+    # samples' order (foot 0 last down at 0.09 s, foot 1 first down again at 0.1 s)
+    gaps[:] = 0.0
+    gaps[(t > 0.03) & (t < 0.095), 1] = 0.05
+    gaps[t > 0.095, 0] = 0.05
+    stances = stance_schedule(t, gaps, 1.0, 20)
+    assert [s.closed for s in stances] == [(0, 1), (0,), (), (1,)]
+    assert stances[2].start == pytest.approx(0.1) and stances[3].start > 0.1
     # a lift-off in the first interval goes to the first jump; one in the last is dropped
     gaps[:] = 0.0
     gaps[t > 0.015, 0] = 0.05

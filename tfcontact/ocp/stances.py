@@ -200,7 +200,15 @@ def stance_schedule(t: np.ndarray, gaps: np.ndarray, horizon: float, n_intervals
         jump = next((j for j in candidates
                      if all((td < at) == (td < j * step) for td, _ in touchdowns)),
                     candidates[0])
-        changes.setdefault(jump * step, (set(), set()))[1].add(i)
+        lift = jump * step
+        if lift in changes and changes[lift][0]:
+            # a touchdown sampled at this very control jump: it goes just after the
+            # lift-off (inside the next interval) or just before it, in the samples'
+            # order; the re-solve moves it freely inside its interval
+            touchdown_at = next(td for td, _ in touchdowns if td == lift)
+            nudged = lift + (1e-6 if at <= touchdown_at else -1e-6) * step
+            changes[nudged] = changes.pop(lift)
+        changes.setdefault(lift, (set(), set()))[1].add(i)
     stances = [Stance(tuple(closed0), 0.0, horizon)]
     for at in sorted(changes):
         closes, opens = changes[at]

@@ -310,6 +310,8 @@ class StanceResolve(Stage):
                 raise NoStart(f"the discovery's homotopy did not converge ({result.status})")
             stances = schedule_of(result, options)
         except (NoStart, InvalidInput) as why:
+            if given.verbose:
+                print(f"{self.name} not started: {why}", flush=True)
             return dataclasses.replace(
                 found, status=found.status if not found.success else "chain_failed",
                 success=False, summary=f"{found.summary}\n{self.name} not started: {why}")
