@@ -188,3 +188,36 @@ def test_an_open_contact_with_a_slip_gain_lands_without_sliding():
     assert plan.verification.passed, plan.verification.summary()
     with pytest.raises(InvalidInput, match="open_slip_gains"):
         StanceOptions(open_slip_gains=(0.0, None))
+
+
+def test_a_standing_foots_velocity_error_does_not_fail_the_restart():
+    """A restart of bolt's verified stance walk (benchmarks/legged.md) at 0.35 s: its left
+    foot stands 1.4e-8 m deep with a normal velocity of 1.4e-7 m/s, the plan's accuracy.
+    With the simulator's default velocity tolerance (1e-7) it flies and lands back until
+    the event cap; with `RESTART_VELOCITY_TOLERANCE` it stands and ends 50 ms later where
+    the plan does."""
+    from tfcontact.ocp.stances import RESTART_VELOCITY_TOLERANCE
+    from tfcontact.task import build_task, load_task, shipped_tasks
+    from tfcontact.verify import MultiContactOptions, SimulationStatus, replay_multicontact
+
+    cls = build_task(load_task(shipped_tasks()["biped-walk"])).problem.system.cls
+    start = np.array([
+        0.040232284935378955, 0.34076739975426895, -0.012798234077715916, 1.0524788741531754,
+        -1.431129565631981, 1.275035693272087, -2.2284529258922, 0.34218457439851896,
+        -0.2524425650221332, 0.060465069366371915, 1.7725718825263246, -0.9991285567734645,
+        12.56058724049405, 13.019686901096765])
+    control = np.array([[1.0926085044145883, 2.2543720114314953, -1.1236429591718322,
+                         -0.35540917575085657]])
+    plan_end = np.array([
+        0.059922561757496086, 0.33529031769956424, -0.007563647978981324, 1.1074435010788344,
+        -1.4182271451073354, 1.3824112519641343, -2.067794110661475, 0.4646265923355478,
+        0.03233763632477731, 0.11904203599979526, 0.4541632891913378, 1.5748182185320159,
+        -7.446164325022457, -7.094219741225259])
+    clocks = np.array([0.0, 0.05])
+    default = replay_multicontact(cls, start, clocks, control, 0.05,
+                                  options=MultiContactOptions(start_gap_tolerance=1e-3))
+    assert default.status == SimulationStatus.MAX_EVENTS
+    restart = replay_multicontact(cls, start, clocks, control, 0.05, options=MultiContactOptions(
+        start_gap_tolerance=1e-3, velocity_tolerance=RESTART_VELOCITY_TOLERANCE))
+    assert restart.success, restart.message
+    assert np.max(np.abs(restart.final_state() - plan_end)) < 1e-5
