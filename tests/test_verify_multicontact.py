@@ -337,6 +337,31 @@ def test_a_restart_inside_the_ground_that_separates_lands_back_at_its_depth(push
     np.testing.assert_allclose(sim.final_state(), start * [1, 1, 1, 0, 0, 0], atol=1e-12)
 
 
+def test_contact_equations_that_cannot_be_solved_end_the_simulation_not_the_caller(
+        monkeypatch):
+    """A least-squares solve of the contact rows that fails (numpy's LinAlgError: bolt on a
+    step, a restart whose trial step reached non-finite states) ends the simulation with
+    status integration_failed and a message, as a failed replay; it does not raise out of
+    the verification (which then lost the plan's output)."""
+    from tfcontact.verify import multicontact
+
+    calls = {"n": 0}
+    lstsq = np.linalg.lstsq
+
+    def failing(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] > 2:
+            raise np.linalg.LinAlgError("SVD did not converge in Linear Least Squares")
+        return lstsq(*args, **kwargs)
+
+    monkeypatch.setattr(multicontact.np.linalg, "lstsq", failing)
+    push = np.array([0.2 * 0.5 * MASS * G])
+    sim = simulate_multicontact(planar_box(0.5, push=True), resting(), lambda t: push, 0.05)
+    assert calls["n"] > 2
+    assert sim.status == SimulationStatus.INTEGRATION_FAILED and not sim.success
+    assert "could not be solved" in sim.message and "SVD" in sim.message
+
+
 def test_inputs_are_checked():
     with pytest.raises(InvalidInput, match="`facets` must be even"):
         MultiContactOptions(facets=5)

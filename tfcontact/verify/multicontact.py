@@ -119,7 +119,8 @@ class SimulationStatus(StrEnum):
                           "`max_events` if the events are genuine",
             "max_rhs_evaluations": "the step size collapsed: raise `max_rhs_evaluations` "
                                    "or look for a singular configuration",
-            "integration_failed": "solve_ivp failed inside a phase",
+            "integration_failed": "solve_ivp failed inside a phase, or its step reached "
+                                  "states the contact equations cannot be solved at",
         }[self.value]
 
 
@@ -900,6 +901,13 @@ class _Simulator:
         except _BudgetExceeded:
             status = SimulationStatus.MAX_RHS_EVALUATIONS
             message = f"stopped after {opt.max_rhs_evaluations} model evaluations"
+        except np.linalg.LinAlgError as error:
+            # a trial step into states the model cannot evaluate (non-finite): a failed
+            # simulation, not an error of the verification (bolt on a step: SVD of the
+            # contact rows did not converge in a restart)
+            status = SimulationStatus.INTEGRATION_FAILED
+            message = (f"the contact equations could not be solved near t = "
+                       f"{self.t_now:.9g} s ({error})")
         message = f"{message} ({status.hint})" if status != SimulationStatus.SUCCESS \
             else message
         return MultiContactSimulation(
