@@ -139,6 +139,18 @@ def _samples(ocp: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.concatenate(taus), np.vstack(ys), np.concatenate(owner)
 
 
+def ground_directions(scene: dict[str, Any], cls: Any) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per CLS contact, the world normal and tangents of the scene's one ground plane
+    (`scene["terrain"]["normal"]`, default z; tangents as `robot.Ground`): the default
+    `directions` of the trajectory adapters."""
+    from tfcontact.robot import Ground
+
+    ground = Ground(normal=tuple(scene.get("terrain", {}).get("normal", GROUND_NORMAL)))
+    return [(np.asarray(ground.normal),
+             ground.tangents(c.n_tangents == 1) if c.n_tangents else np.zeros((3, 0)))
+            for c in cls.contacts]
+
+
 def trajectory_from_result(
     result: Any,
     robot_spec: Any,
@@ -200,13 +212,7 @@ def trajectory_from_result(
             f"`contact_map` must give one robot contact in [0, {n_robot}) per CLS contact "
             f"({n_c}), got {contact_map}")
     if directions is None:
-        from tfcontact.robot import Ground
-
-        terrain = scene.get("terrain", {})
-        ground = Ground(normal=tuple(terrain.get("normal", GROUND_NORMAL)))
-        directions = [(np.asarray(ground.normal),
-                       ground.tangents(c.n_tangents == 1) if c.n_tangents else np.zeros((3, 0)))
-                      for c in cls.contacts]
+        directions = ground_directions(scene, cls)
     directions_at = directions if callable(directions) else (lambda _q: directions)
 
     def checked(entries: Any) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -456,7 +462,6 @@ def trajectory_from_stances(
     ground of `scene["terrain"]`). `extras["closed"]`: which contacts are closed.
     """
     from tfcontact.ocp.stances import node_values
-    from tfcontact.robot import Ground
     from tfcontact.timefreezing import FROZEN_RATE_TOL
 
     robot = robot_spec if isinstance(robot_spec, dict) else robot_spec.to_dict()
@@ -466,10 +471,7 @@ def trajectory_from_stances(
         raise InvalidInput(f"the robot has {len(robot.get('contacts', []))} contacts and the "
                            f"plan's system {n_c}")
     if directions is None:
-        ground = Ground(normal=tuple(scene.get("terrain", {}).get("normal", GROUND_NORMAL)))
-        directions = [(np.asarray(ground.normal),
-                       ground.tangents(c.n_tangents == 1) if c.n_tangents else np.zeros((3, 0)))
-                      for c in cls.contacts]
+        directions = ground_directions(scene, cls)
     directions_at = directions if callable(directions) else (lambda _q: directions)
     values = node_values(plan, cls)
     n_q = cls.n_q
