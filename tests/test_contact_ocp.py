@@ -113,3 +113,25 @@ def test_painleve_note_names_the_ill_posed_closed_samples():
     assert painleve_note(rod, q[:1], closed[:1]) is None
     assert painleve_note(rod, q, np.zeros_like(closed)) is None
     assert painleve_note(painleve_rod(mu=0.5), q, closed) is None
+
+
+def test_the_failed_attempt_nearest_success_is_returned():
+    """A failed plan's result is its best solve, not its last: a physical plan that misses
+    its task before a converged one that fails its checks, before a failed homotopy;
+    among equals the smallest end-state deviation (NaN last), then the earliest."""
+    from tfcontact.ocp.contact import Attempt, nearest_success
+
+    def attempt(status: str, deviation: float) -> Attempt:
+        return Attempt(None, status, 10, 1.0, 0.1, deviation)
+
+    assert nearest_success([attempt("nlp_failed", 0.1), attempt("verification_failed", 3.0),
+                            attempt("not_converged", 0.01)]) == 1
+    assert nearest_success([attempt("verification_failed", 0.5),
+                            attempt("goal_missed", 9.0)]) == 1
+    assert nearest_success([attempt("verification_failed", np.nan),
+                            attempt("verification_failed", 2.0),
+                            attempt("verification_failed", 0.9)]) == 2
+    assert nearest_success([attempt("nlp_failed", 0.2), attempt("nlp_failed", 0.2)]) == 0
+    assert nearest_success([attempt("no_motion", 1.0), attempt("converged", 1e-6)]) == 1
+    with pytest.raises(InvalidInput, match="no solve to choose from"):
+        nearest_success([])

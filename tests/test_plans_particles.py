@@ -254,7 +254,7 @@ def test_unreachable_target_fails_with_reason():
     # the failed plan was solved again from a perturbed guess, and failed again
     assert [(a.seed, a.status) for a in result.attempts] == [(None, "nlp_failed"),
                                                               (1, "nlp_failed")]
-    assert result.attempts[-1].iterations == result.ocp.total_iterations
+    assert result.attempts[result.chosen].iterations == result.ocp.total_iterations
     assert result.timings["solve"] == pytest.approx(
         sum(a.solve_time for a in result.attempts))
     assert "attempt 2: nlp_failed" in result.summary()

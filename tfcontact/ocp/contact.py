@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -264,7 +265,8 @@ class ContactResult:
         timings: seconds by phase ("build", "solve", "verify", "total"), summed over all
             attempts.
         options: the `ContactSolverOptions` it was solved with.
-        attempts: every solve, this plan's last (more than one after failed plans).
+        attempts: every solve (more than one after failed plans); this plan is
+            `attempts[chosen]`.
         task: the problem's goals measured on the physical plan (`TaskReport`).
     """
 
@@ -292,6 +294,11 @@ class ContactResult:
         return _status(self.ocp, self.verification, self.task)
 
     @property
+    def chosen(self) -> int | None:
+        """The index of this plan's solve in `attempts` (None: no attempts recorded)."""
+        return nearest_success(self.attempts) if self.attempts else None
+
+    @property
     def message(self) -> str:
         return (f"{self.ocp.message}; {self.verification.summary()}; "
                 f"{self.task.summary().splitlines()[0]}")
@@ -303,7 +310,8 @@ class ContactResult:
         tried = []
         if len(self.attempts) > 1:
             tried = [f"attempts: {len(self.attempts)} (the wall times above are their sums, "
-                     f"the other figures the last attempt's)"]
+                     f"the other figures attempt {self.chosen + 1}'s, the one nearest "
+                     f"success)"]
             tried += [f"  attempt {k + 1}: {a.status}, {a.iterations} IPOPT iterations, "
                       f"end-state deviation {a.end_state_deviation:.2e}"
                       + ("" if a.seed is None else f", guess perturbed (seed {a.seed})")
@@ -329,6 +337,25 @@ def _status(ocp: OcpResult, verification: Verification, task: TaskReport) -> str
     if not verification.passed:
         return "verification_failed"
     return "converged" if task.passed else task.status
+
+
+def nearest_success(attempts: Sequence[Attempt]) -> int:
+    """The index of the attempt nearest success: a converged one; else a plan that is
+    physical but misses its task, then a converged plan that fails its checks
+    ("verification_failed"), then a failed homotopy; among equals the smallest end-state
+    deviation (NaN last), then the earliest."""
+    solver_failed = {s.name.lower() for s in MpccStatus if s is not MpccStatus.CONVERGED}
+
+    def key(k: int) -> tuple[int, float, int]:
+        a = attempts[k]
+        rank = (0 if a.status == "converged" else 3 if a.status in solver_failed
+                else 2 if a.status == "verification_failed" else 1)
+        deviation = a.end_state_deviation
+        return (rank, deviation if np.isfinite(deviation) else np.inf, k)
+
+    if not attempts:
+        raise InvalidInput("`attempts` is empty: no solve to choose from")
+    return min(range(len(attempts)), key=key)
 
 
 def task_report(problem: ContactProblem, physical: PhysicalTrajectory) -> TaskReport:
@@ -482,7 +509,7 @@ def solve_contact(
         A `ContactResult`; `success` only if the homotopy converged and the plan passed
         the independent checks. With `options.attempts` > 1 a failed plan is solved again
         from a perturbed guess; the result is the first plan that succeeded, else the
-        last one, and `attempts` lists them all.
+        failed one nearest success (`nearest_success`), and `attempts` lists them all.
     """
     options = options if options is not None else ContactSolverOptions()
     start = time.perf_counter()
@@ -494,6 +521,7 @@ def solve_contact(
     if initial_guess is not None:
         ocp_problem, w0 = _warm_start(ocp_problem, initial_guess, transcription)
     attempts: list[Attempt] = []
+    solves: list[tuple] = []
     totals = {"build": 0.0, "solve": 0.0, "verify": 0.0}
     for k in range(options.attempts):
         seed = k or None  # the first solve starts from the unperturbed guess
@@ -522,8 +550,11 @@ def solve_contact(
         attempts.append(Attempt(seed=seed, status=status, iterations=result.total_iterations,
                                 solve_time=result.solve_time, verify_time=verify_time,
                                 end_state_deviation=verification.end_state_deviation))
+        solves.append((result, physical, verification, task))
         if status == "converged":
             break
+    # a failed plan's best attempt, not its last: the exact re-solve starts from it
+    result, physical, verification, task = solves[nearest_success(attempts)]
     n_u = system.u.numel() - 1
     contact = ContactResult(
         problem=problem, system=system, ocp=result, tau=result.t, y=result.x,

@@ -75,7 +75,7 @@ def solver_record(result: Any) -> dict[str, Any]:
     sigma, iterations, objective, residual, seconds, ipopt_status, evaluation_seconds,
     intermediate, refined) and
     attempts (one dict per solve: seed, status, iterations, solve_time, verify_time,
-    end_state_deviation).
+    end_state_deviation, chosen: whether this plan is that solve's).
     """
     ocp = result.ocp
     build = ocp.build
@@ -120,7 +120,10 @@ def solver_record(result: Any) -> dict[str, Any]:
 
 
 def _attempts(result: Any) -> list[dict[str, Any]]:
-    return [dataclasses.asdict(a) for a in getattr(result, "attempts", ())]
+    """One dict per solve, `chosen` marking the one whose plan this is."""
+    chosen = getattr(result, "chosen", None)
+    return [{**dataclasses.asdict(a), "chosen": k == chosen}
+            for k, a in enumerate(getattr(result, "attempts", ()))]
 
 
 def _samples(ocp: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

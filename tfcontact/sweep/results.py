@@ -36,7 +36,7 @@ class CaseResult:
         status: the plan's `ContactResult.status` ("converged", "nlp_failed",
             "not_converged", "verification_failed", "goal_missed", "no_motion") or "error"
             (the solve raised).
-        success: converged and verified (the last attempt's plan).
+        success: converged and verified (the returned plan: `ContactResult.chosen`).
         first_attempt_success: the first attempt (unperturbed guess) was verified.
         attempts_used: solves made (`ContactSolverOptions.attempts` at most).
         attempt_statuses: each attempt's status.
