@@ -135,3 +135,49 @@ def test_the_failed_attempt_nearest_success_is_returned():
     assert nearest_success([attempt("no_motion", 1.0), attempt("converged", 1e-6)]) == 1
     with pytest.raises(InvalidInput, match="no solve to choose from"):
         nearest_success([])
+
+
+def test_a_periodicity_repeats_the_named_states_at_the_interval_boundaries(particle):
+    """`Periodicity`: the boundary hook adds y_i(t_k) - y_i(t_k - P) for the named states
+    (q or v indices mapped into the time-freezing state) from boundary first + P on, the
+    start state itself where the period begins at 0; bad periods are refused."""
+    from tfcontact.ocp import Periodicity
+
+    def hook_rows(periodicity):
+        problem = ContactProblem(system=particle, q0=[0.0, 1.0], v0=[0.5, 0.0],
+                                 horizon=1.0, n_intervals=5, periodicity=periodicity)
+        ocp, tf = transcribe(problem)
+        rng = np.random.default_rng(0)
+        ys = [rng.standard_normal(tf.n_y) for _ in range(6)]
+        ys[0] = ocp.x0
+        symbols = [ca.SX.sym(f"y{k}", tf.n_y) for k in range(1, 6)]
+        rows = []
+        for k, y in enumerate(symbols, start=1):
+            con = ocp.boundary_constraints(k, y)
+            value = ca.Function("c", symbols, [con.expression])(*ys[1:])
+            rows.append(np.asarray(value).ravel())
+        return tf, ys, rows
+
+    tf, ys, rows = hook_rows(Periodicity(states=(1, 2), period=2, first=1))
+    z, v_x = np.arange(tf.n_y)[tf.q_index][1], np.arange(tf.n_y)[tf.v_index][0]
+    assert [r.size for r in rows] == [1, 1, 3, 3, 3]  # the clock row, then 2 repeated
+    for k in (3, 4, 5):
+        np.testing.assert_allclose(rows[k - 1][1:], [ys[k][z] - ys[k - 2][z],
+                                                     ys[k][v_x] - ys[k - 2][v_x]])
+    tf, ys, rows = hook_rows(Periodicity(states=(0,), period=5))
+    x = np.arange(tf.n_y)[tf.q_index][0]
+    assert rows[4][1] == pytest.approx(ys[5][x] - 0.0)  # x(T) - x(0), the start's
+    for bad, message in (
+            (Periodicity(states=(4,), period=2), r"must index x = \(q, v\) of 4 entries"),
+            (Periodicity(states=(0,), period=3, first=3), "passes the last boundary N = 5")):
+        with pytest.raises(InvalidInput, match=message):
+            ContactProblem(system=particle, q0=[0.0, 1.0], v0=[0.0, 0.0], horizon=1.0,
+                           n_intervals=5, periodicity=bad)
+    with pytest.raises(InvalidInput, match="needs `stagewise_clock`"):
+        ContactProblem(system=particle, q0=[0.0, 1.0], v0=[0.0, 0.0], horizon=1.0,
+                       n_intervals=5, stagewise_clock=False,
+                       periodicity=Periodicity(states=(0,), period=2))
+    with pytest.raises(InvalidInput, match="must be distinct state indices"):
+        Periodicity(states=(1, 1), period=2)
+    with pytest.raises(InvalidInput, match="`Periodicity.period` must be a positive"):
+        Periodicity(states=(1,), period=0)

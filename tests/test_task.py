@@ -106,6 +106,12 @@ def _edited(task_file: Path, old: str, new: str) -> Path:
     ("[goals]", "[goal]", r"`task` has unknown keys \['goal'\]"),
     ("horizon = 1.0\n", "", r"`task` lacks \['horizon'\]"),
     ("control = 0.001", "control = 'cheap'", r"`costs.control` must be a number"),
+    ("no_slip = true", "no_slip = true\nreach = { w = [-0.1, 0.1] }",
+     r"`contacts\[toe\].reach` names axes \['w'\]; its axes: x, y, z"),
+    ("no_slip = true", "no_slip = true\nreach = { x = [0.1, -0.1] }",
+     r"`contacts\[toe\].reach.x` must have low < high"),
+    ("no_slip = true", "no_slip = true\nreach = { x = 0.1 }",
+     r"`contacts\[toe\].reach.x` must be \[low, high\]"),
 ])
 def test_task_file_errors_name_the_field(task_file, old, new, message):
     path = _edited(task_file, old, new)
@@ -334,6 +340,38 @@ def test_the_biped_walk_task_builds_bolt_with_two_feet_in_the_plane():
     knees = [cls.q_names.index(name) for name in ("FL_KFE", "FR_KFE")]
     np.testing.assert_allclose(setup.problem.q_upper[knees], -0.3)
     assert load_task(shipped_tasks()["biped-walk"]).exact_resolve
+
+
+def test_a_contacts_reach_bounds_it_in_the_base_frame():
+    """`reach`: rows after the no-slip rows holding the foot's position relative to the
+    base, in the base's frame, within the box: checked against Pinocchio's placements at
+    random configurations of bolt's pitching planar base."""
+    import dataclasses
+
+    import pinocchio as pin
+
+    task = load_task(shipped_tasks()["biped-walk"])
+    contacts = (dataclasses.replace(task.contacts[0], reach={"x": (-0.12, 0.12)}),
+                dataclasses.replace(task.contacts[1], reach={"z": (-0.4, -0.2),
+                                                             "x": (-0.1, 0.15)}))
+    setup = build_task(dataclasses.replace(task, contacts=contacts))
+    path, cls = setup.problem.path, setup.problem.system.cls
+    np.testing.assert_array_equal(path.lower, [-np.inf, -np.inf, -0.12, -0.4, -0.1])
+    np.testing.assert_array_equal(path.upper, [0.0, 0.0, 0.12, -0.2, 0.15])
+    rows = ca.Function("rows", [cls.q], [path.expression[2:]])
+    model, data = setup.robot.model, setup.robot.data
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        q = rng.uniform(-1.0, 1.0, cls.n_q)
+        pin.framesForwardKinematics(model, data, q)
+        base = data.oMf[model.getFrameId("root_joint")]
+        offsets = [base.actInv(data.oMf[model.getFrameId(f)].translation)
+                   for f in ("FL_FOOT", "FR_FOOT")]
+        expected = [offsets[0][0], offsets[1][2], offsets[1][0]]
+        np.testing.assert_allclose(np.asarray(rows(q)).ravel(), expected, atol=1e-12)
+    # the base's frame, not the world's: at this pitch the two differ by centimetres
+    world = data.oMf[model.getFrameId("FL_FOOT")].translation - base.translation
+    assert abs(world[0] - offsets[0][0]) > 0.01
 
 
 def test_validation_of_the_dataclasses():
@@ -652,6 +690,30 @@ def test_periodic_states_end_where_they_start(task_file):
         build_task(load_task(path))
     _edited(path, '["z", "pitch"]', '["z", "z"]')
     with pytest.raises(InvalidInput, match="`periodic` must list distinct state names"):
+        load_task(path)
+
+
+def test_a_period_repeats_the_periodic_states_within_the_horizon(task_file):
+    """`period` (with `periodic`): the states repeat every period from `period_from`
+    (`Periodicity` in control intervals of T / N = 0.05 s) instead of ending where they
+    started; periods that are no multiple of the interval or pass the horizon are
+    refused, and so is a period without states."""
+    from tfcontact.ocp import Periodicity
+
+    path = _edited(task_file, "horizon = 1.0",
+                   'horizon = 1.0\nperiodic = ["z", "v_leg"]\nperiod = 0.4\nperiod_from = 0.2')
+    problem = build_task(load_task(path)).problem
+    assert problem.periodicity == Periodicity(states=(1, 5), period=8, first=4)
+    assert problem.terminal is None  # no x(T) = x(0) rows
+    _edited(path, "period = 0.4", "period = 0.42")
+    with pytest.raises(InvalidInput, match=r"`period` = 0.42 s must be a multiple of the "
+                                           r"control interval T / N = 0.05 s"):
+        build_task(load_task(path))
+    _edited(path, "period = 0.42", "period = 0.9")
+    with pytest.raises(InvalidInput, match=r"`period_from` \+ `period` = 1.1 s passes"):
+        load_task(path)
+    _edited(path, 'periodic = ["z", "v_leg"]\nperiod = 0.9', "period = 0.4")
+    with pytest.raises(InvalidInput, match="`period` needs `periodic`"):
         load_task(path)
 
 

@@ -14,6 +14,7 @@ from tfcontact.ocp.contact import (
     ContactProblem,
     ContactResult,
     ContactSolverOptions,
+    Periodicity,
     solve_contact,
     verify_plan,
 )
@@ -31,6 +32,7 @@ __all__ = [
     "OcpBuild",
     "OcpResult",
     "OptimalControlProblem",
+    "Periodicity",
     "Transcription",
     "Verification",
     "build",

@@ -58,6 +58,36 @@ def _vector(value: object, n: int, default: float, name: str) -> np.ndarray:
     return arr
 
 
+@dataclass(frozen=True)
+class Periodicity:
+    """A gait's period at the control-interval boundaries: x_i(t_k + P) = x_i(t_k) for the
+    states i named, at every boundary k >= `first` with k + `period` <= N.
+
+    Args:
+        states: indices into x = (q, v) of the states that repeat; leave out what
+            progresses (a walking base's forward position).
+        period: P in control intervals.
+        first: the first boundary k that repeats (a start-up before it; 0: the gait
+            repeats the start state).
+    """
+
+    states: tuple[int, ...]
+    period: int
+    first: int = 0
+
+    def __post_init__(self) -> None:
+        states = tuple(self.states)
+        if not states or len(set(states)) != len(states) or not all(
+                isinstance(i, int | np.integer) and i >= 0 for i in states):
+            raise InvalidInput(f"`Periodicity.states` must be distinct state indices, got "
+                               f"{self.states!r}")
+        object.__setattr__(self, "states", tuple(int(i) for i in states))
+        positive_int(self.period, "Periodicity.period")
+        if not isinstance(self.first, int | np.integer) or self.first < 0:
+            raise InvalidInput(f"`Periodicity.first` must be a boundary k >= 0, got "
+                               f"{self.first!r}")
+
+
 @dataclass(frozen=True, eq=False)
 class ContactProblem:
     """An OCP of a time-freezing system, stated in physical time.
@@ -91,6 +121,8 @@ class ContactProblem:
             `Moves`): checked on the plan's physical motion after the solve; a plan that
             misses one is not a success (status "goal_missed" or "no_motion"). Default
             none: only the physical checks are made, and the summary says so.
+        periodicity: a `Periodicity` of the states at the interval boundaries (a gait
+            repeating within the horizon; `stagewise_clock` puts boundary k at k T / N).
     """
 
     system: TimeFreezingSystem
@@ -114,6 +146,7 @@ class ContactProblem:
     guess: np.ndarray | None = None
     control_guess: np.ndarray | None = None
     goals: tuple[Goal, ...] = ()
+    periodicity: Periodicity | None = None
 
     def __post_init__(self) -> None:
         tf = self.system
@@ -178,6 +211,22 @@ class ContactProblem:
                                    f"Clearance, Moves), got {type(goal).__name__}")
             goal.validate(tf.cls.q_names, tf.cls.n_contacts)
         object.__setattr__(self, "goals", goals)
+        period = self.periodicity
+        if period is not None:
+            if not isinstance(period, Periodicity):
+                raise InvalidInput(f"`periodicity` must be a Periodicity, got "
+                                   f"{type(period).__name__}")
+            if max(period.states) >= 2 * n_q:
+                raise InvalidInput(f"`periodicity.states` must index x = (q, v) of "
+                                   f"{2 * n_q} entries, got {list(period.states)}")
+            if period.first + period.period > self.n_intervals:
+                raise InvalidInput(
+                    f"`periodicity`: boundary {period.first} plus the period of "
+                    f"{period.period} intervals passes the last boundary N = "
+                    f"{self.n_intervals}")
+            if not self.stagewise_clock:
+                raise InvalidInput("`periodicity` needs `stagewise_clock` (boundary k at "
+                                   "k T / N, so that a period is a time)")
 
     @property
     def tau_horizon(self) -> float:
@@ -405,10 +454,21 @@ def transcribe(problem: ContactProblem) -> tuple[OptimalControlProblem, TimeFree
     n_int = problem.n_intervals
     T = problem.horizon
 
+    period = problem.periodicity
+    repeated = [] if period is None else np.concatenate(
+        [np.arange(n_y)[tf.q_index], np.arange(n_y)[tf.v_index]])[list(period.states)]
+    boundaries: dict[int, ca.SX] = {0: ca.SX(ca.DM(y0))}
+
     def clock_constraint(k: int, y_k: ca.SX) -> Constraint | None:
+        # the hook sees the boundaries in order k = 1..N: it keeps them for the period
+        boundaries[k] = y_k
+        rows = []
         if problem.stagewise_clock or k == n_int:
-            return Constraint(y_k[clock] - k * T / n_int)
-        return None
+            rows.append(y_k[clock] - k * T / n_int)
+        if period is not None and k - period.period >= period.first:
+            earlier = boundaries[k - period.period]
+            rows += [y_k[i] - earlier[i] for i in repeated]
+        return Constraint(ca.vertcat(*rows)) if rows else None
 
     n_u = u_phys.numel()
     u_lower = np.concatenate([problem.u_lower, [s_min]])

@@ -73,7 +73,7 @@ def build_task(task: Task) -> TaskSetup:
         RobotLoadError, InvalidRobotModel, FrameNotFound: from `load_robot`.
     """
     from tfcontact.ocp import Constraint
-    from tfcontact.ocp.contact import ContactProblem
+    from tfcontact.ocp.contact import ContactProblem, Periodicity
     from tfcontact.robot import BASE_COORDINATES, ContactSpec, Ground, load_robot
     from tfcontact.task.presets import SOLVER_PRESETS
     from tfcontact.task.spec import FRICTION_MODELS
@@ -139,11 +139,12 @@ def build_task(task: Task) -> TaskSetup:
 
     lower, upper = _state_bounds(task, robot, state_names)
     u_bound = _effort(task, robot, actuated)
-    # A task's path rows are its contacts' no-slip rows only: the stance re-solve of
-    # several contacts drops them (`StanceResolve(keep_path=False)`, where every closed
-    # contact sticks); a new kind of path row must change that.
+    # A task's path rows are its contacts' no-slip and reach rows only, both steering the
+    # discovery: the stance re-solve of several contacts drops them
+    # (`StanceResolve(keep_path=False)`, where every closed contact sticks and the
+    # stances found are kept); a new kind of path row must change that.
     path = None
-    rows = []
+    rows, row_upper, row_lower = [], [], []
     for c, entry in zip(cls.contacts, task.contacts, strict=True):
         if entry.no_slip:
             if c.mu == 0.0:
@@ -152,8 +153,22 @@ def build_task(task: Task) -> TaskSetup:
                                    "a slide)")
             slip = ca.mtimes(c.tangents.T, cls.v)
             rows.append(ca.sumsqr(slip) - entry.no_slip_gain * c.gap)
+            row_lower.append(-np.inf)
+            row_upper.append(0.0)
+    base = "root_joint" if robot.model.existFrame("root_joint") else "universe"
+    for entry in task.contacts:
+        if not entry.reach:
+            continue
+        offset = ca.mtimes(robot.twin.frame_rotation(base).T,
+                           robot.twin.frame_position(entry.frame)
+                           - robot.twin.frame_position(base))
+        for axis, (low, high) in entry.reach.items():
+            rows.append(offset["xyz".index(axis)])
+            row_lower.append(low)
+            row_upper.append(high)
     if rows:
-        path = Constraint(ca.vertcat(*rows), upper=0.0)
+        path = Constraint(ca.vertcat(*rows),
+                          lower=np.array(row_lower), upper=np.array(row_upper))
     # A contact asked to end resting on a surface ends touching the terrain: without it
     # the plan may meet its end pose in flight above the surface. Half the goal's
     # threshold, so that IPOPT's tolerance cannot leave the plan just outside it.
@@ -164,7 +179,13 @@ def build_task(task: Task) -> TaskSetup:
         end_rows.append(ca.substitute(ca.vertcat(*resting), cls.q, y[tf.q_index]))
         lower_end += [0.0] * len(resting)
         upper_end += [0.5 * RESTING_GAP] * len(resting)
-    for name in task.periodic:  # a gait's period: the state ends where it started
+    periodicity = None
+    if task.period is not None:
+        periodicity = Periodicity(tuple(state_names.index(n) for n in task.periodic),
+                                  _intervals(task, task.period, "period"),
+                                  _intervals(task, task.period_from, "period_from"))
+    for name in task.periodic if task.period is None else ():
+        # a gait's period: the state ends where it started
         i = state_names.index(name)
         end_rows.append(x[i] - float(x0[i]))
         lower_end.append(0.0)
@@ -182,7 +203,8 @@ def build_task(task: Task) -> TaskSetup:
         u_lower=-u_bound, u_upper=u_bound,
         q_lower=lower[:len(names)], q_upper=upper[:len(names)],
         v_lower=lower[len(names):], v_upper=upper[len(names):],
-        path=path, terminal=end_constraint, goals=_goals(task, robot, cls), guess=guess)
+        path=path, terminal=end_constraint, goals=_goals(task, robot, cls), guess=guess,
+        periodicity=periodicity)
     options = SOLVER_PRESETS[task.solver]()
     if task.complementarity_tolerance is not None:
         options = dataclasses.replace(options, homotopy=dataclasses.replace(
@@ -301,6 +323,16 @@ def _check_names(task: Task, state_names: list[str], frames: list[str]) -> None:
             kind = "contacts" if allowed is frames else "names"
             raise InvalidInput(f"`{where}` names {unknown}, which the robot has not; its "
                                f"{kind}: {', '.join(allowed)}")
+
+
+def _intervals(task: Task, duration: float, where: str) -> int:
+    """`duration` [s] in control intervals of the task; refused unless a multiple."""
+    step = task.horizon / task.n_intervals
+    k = round(duration / step)
+    if abs(k * step - duration) > 1e-9 * task.horizon:
+        raise InvalidInput(f"`{where}` = {duration:g} s must be a multiple of the control "
+                           f"interval T / N = {step:g} s")
+    return k
 
 
 def _start(task: Task, names: list[str]) -> np.ndarray:

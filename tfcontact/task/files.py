@@ -70,10 +70,10 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "actuated", "effort", "bounds", "terrain", "waypoints", "goals", "costs", "solver",
         "guess", "a_n", "gap_scale", "exact_resolve",
         "complementarity_tolerance", "finite_elements", "friction_model", "periodic",
-        "barrier"}
+        "period", "period_from", "barrier"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
-            "eps_t"}
+            "eps_t", "reach"}
 _TERRAIN = {"height", "normal"}
 _PRIMITIVE_TERRAIN = {"primitives", "smoothing", "region"}
 _PRIMITIVES: dict[str, tuple[type, set[str], tuple[str, ...]]] = {
@@ -159,6 +159,7 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         friction_model=top.get("friction_model", "cone"),
         barrier=top.get("barrier"),
         periodic=_listed(top.get("periodic", ()), "periodic"),
+        period=top.get("period"), period_from=top.get("period_from", 0.0),
     )
 
 

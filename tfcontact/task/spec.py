@@ -53,6 +53,19 @@ def _frozen(mapping: Mapping[str, Any]) -> Mapping[str, Any]:
     return MappingProxyType(dict(mapping))
 
 
+def _intervals(mapping: Mapping[str, Any], where: str) -> Mapping[str, tuple[float, float]]:
+    """{name: (low, high)} of a table of [low, high] pairs, each low < high."""
+    checked = {}
+    for k, pair in _names(mapping, where).items():
+        if not isinstance(pair, tuple | list) or len(pair) != 2:
+            raise InvalidInput(f"`{where}.{k}` must be [low, high], got {pair!r}")
+        low, high = (finite(b, f"{where}.{k}") for b in pair)
+        if low >= high:
+            raise InvalidInput(f"`{where}.{k}` must have low < high, got {list(pair)}")
+        checked[k] = (low, high)
+    return _frozen(checked)
+
+
 @dataclass(frozen=True)
 class RobotEntry:
     """Which robot: a URDF path, a project robot ("hopper") or an example-robot-data name.
@@ -102,6 +115,12 @@ class ContactEntry:
             and the friction terms' derivatives grow as 1/eps_t. The default 1 mm/s
             keeps them bounded; the reference value 1e-7 made a solo12 jump's first NLP
             fail in IPOPT's restoration phase (benchmarks/legged.md).
+        reach: the box the contact's centre keeps to relative to the base, {axis: [low,
+            high]} [m] with axis x, y or z of the base's frame (a fixed base's: the
+            world's), at every stage of the discovery: a leg's range of motion. It bounds
+            the step length, so a walk must step more often to cover its distance. Like
+            `no_slip`, it steers the discovery: the stance re-solve of several contacts
+            keeps the stances found and drops these rows (`StanceResolve`).
     """
 
     frame: str
@@ -111,6 +130,7 @@ class ContactEntry:
     no_slip: bool = False
     no_slip_gain: float = 100.0
     eps_t: float = 1e-3
+    reach: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not isinstance(self.frame, str) or not self.frame:
@@ -132,6 +152,11 @@ class ContactEntry:
             self.no_slip_gain, f"{where}.no_slip_gain", low=0.0, strict=True, unit="m/s^2"))
         object.__setattr__(self, "eps_t", finite(self.eps_t, f"{where}.eps_t", low=0.0,
                                                  strict=True, unit="m/s"))
+        reach = _intervals(self.reach, f"{where}.reach")
+        if set(reach) - {"x", "y", "z"}:
+            raise InvalidInput(f"`{where}.reach` names axes {sorted(set(reach) - set('xyz'))}"
+                               "; its axes: x, y, z (of the base's frame)")
+        object.__setattr__(self, "reach", reach)
 
 
 @dataclass(frozen=True)
@@ -344,6 +369,12 @@ class Task:
         periodic: coordinates and velocities that end where they start, x(T) = x(0) as a
             terminal constraint (a gait's period: name every state but the base's forward
             position, so that the gait repeats while it progresses).
+        period: with `periodic`, the gait's period P [s] within the horizon instead:
+            x(t + P) = x(t) for the named states at every control-interval boundary t
+            from `period_from` [s] while t + P <= T (both multiples of T / N). A walk
+            that must step several times per foot repeats one cycle: each foot steps in
+            every period. It steers the discovery; the stance re-solve keeps the stances
+            found and not the period.
         complementarity_tolerance: the residual at which the preset's MPCC homotopy stops
             (`Homotopy.tolerance`; default: the preset's). A plan whose relaxed contacts
             still act a millimetre above the surface fails its exact-impact replay; a
@@ -392,6 +423,8 @@ class Task:
     a_n: float = 100.0
     gap_scale: float = 30.0
     periodic: tuple[str, ...] = ()
+    period: float | None = None
+    period_from: float = 0.0
     complementarity_tolerance: float | None = None
     finite_elements: int | None = None
     friction_model: str = "cone"
@@ -427,15 +460,7 @@ class Task:
         object.__setattr__(self, "effort", _frozen(
             {k: finite(v, f"effort.{k}", low=0.0, strict=True) for k, v in
              _names(self.effort, "effort").items()}))
-        bounds = {}
-        for k, pair in _names(self.bounds, "bounds").items():
-            if not isinstance(pair, tuple | list) or len(pair) != 2:
-                raise InvalidInput(f"`bounds.{k}` must be [low, high], got {pair!r}")
-            low, high = (finite(b, f"bounds.{k}") for b in pair)
-            if low >= high:
-                raise InvalidInput(f"`bounds.{k}` must have low < high, got {list(pair)}")
-            bounds[k] = (low, high)
-        object.__setattr__(self, "bounds", _frozen(bounds))
+        object.__setattr__(self, "bounds", _intervals(self.bounds, "bounds"))
         if not isinstance(self.terrain, PlaneTerrain | PrimitiveTerrain):
             raise InvalidInput("`terrain` must be a PlaneTerrain ([terrain] height, normal) "
                                "or a PrimitiveTerrain ([[terrain.primitives]])")
@@ -463,6 +488,16 @@ class Task:
             raise InvalidInput(f"`periodic` must list distinct state names, got "
                                f"{self.periodic!r}")
         object.__setattr__(self, "periodic", periodic)
+        if self.period is not None:
+            period = finite(self.period, "period", low=0.0, strict=True, unit="s")
+            start = finite(self.period_from, "period_from", low=0.0, unit="s")
+            if start + period > self.horizon * (1 + 1e-12):
+                raise InvalidInput(f"`period_from` + `period` = {start + period:g} s passes "
+                                   f"the horizon {self.horizon:g} s")
+            if not periodic:
+                raise InvalidInput("`period` needs `periodic`: the states that repeat")
+            object.__setattr__(self, "period", period)
+            object.__setattr__(self, "period_from", start)
         if self.complementarity_tolerance is not None:
             object.__setattr__(self, "complementarity_tolerance", finite(
                 self.complementarity_tolerance, "complementarity_tolerance", low=0.0,
