@@ -314,9 +314,9 @@ def test_the_biped_walk_task_builds_bolt_with_two_feet_in_the_plane():
     two feet with one tangent each standing on the ground at the start (Pinocchio's foot
     heights, spheres of the foot meshes' 16 mm), a no-slip row per foot, the monotone
     barrier over the fast preset, the gap scale of its elements (60), two lift-offs
-    asked of each foot, joint bounds inside the URDF's +-10 rad and the exact re-solve
-    along its stances. Its solve (about 12 minutes: a verified walk of one step per foot,
-    benchmarks/legged.md) is not run here."""
+    asked of each foot, joint bounds inside the URDF's +-10 rad, each foot's reach, the
+    gait's period of 0.4 s from 0.2 s (every state but x) and the exact re-solve along its
+    stances. Its solve (about 32 minutes: benchmarks/legged.md) is not run here."""
     import pinocchio as pin
 
     from tfcontact.ocp.goals import LiftOffs
@@ -334,7 +334,11 @@ def test_the_biped_walk_task_builds_bolt_with_two_feet_in_the_plane():
     assert dict(setup.problem.system.info)["gap_scale"] == 60.0
     assert setup.options.nlp.options["mu_strategy"] == "monotone"
     assert setup.options.nlp.intermediate_tol == SOLVER_PRESETS["fast"]().nlp.intermediate_tol
-    assert setup.problem.path is not None and setup.problem.path.expression.numel() == 2
+    assert setup.problem.path is not None and setup.problem.path.expression.numel() == 4
+    np.testing.assert_array_equal(setup.problem.path.upper, [0.0, 0.0, 0.12, 0.12])
+    periodicity = setup.problem.periodicity
+    assert (periodicity.period, periodicity.first) == (8, 4)
+    assert periodicity.states == tuple(range(1, 14))  # every state but x (index 0)
     assert LiftOffs(0, 2, 0.05) in setup.problem.goals
     assert LiftOffs(1, 2, 0.05) in setup.problem.goals
     knees = [cls.q_names.index(name) for name in ("FL_KFE", "FR_KFE")]

@@ -152,7 +152,9 @@ def test_planar_box_sliding_stops_at_the_coulomb_time_and_distance(mu):
     assert kinds == [(EventKind.STICK, 0), (EventKind.STICK, 1)]
     np.testing.assert_allclose([e.time for e in sim.events], stop, rtol=1e-9)
     np.testing.assert_allclose(sim.x[-1], [v0**2 / (2 * mu * G), b, 0, 0, 0, 0], atol=1e-9)
-    sliding = (sim.t > 0) & (sim.t < stop)
+    # the samples before the stop event (the event's own samples, located to round-off
+    # near t*, may fall an ulp below it and carry the resting forces)
+    sliding = (sim.t > 0) & (sim.t < sim.events[0].time)
     assert sliding.sum() >= 1
     weight = MASS * G
     np.testing.assert_allclose(sim.normal_forces[sliding],
@@ -451,7 +453,7 @@ def test_urdf_box_through_the_robot_layer_slides_to_the_coulomb_stop(tmp_path):
     np.testing.assert_allclose([e.time for e in sim.events], stop, rtol=1e-9)
     np.testing.assert_allclose(sim.x[-1], [v0**2 / (2 * mu * G), 0.25, 0, 0, 0, 0],
                                atol=1e-9)
-    sliding = (sim.t > 0) & (sim.t < stop)
+    sliding = (sim.t > 0) & (sim.t < sim.events[0].time)
     split = mu * 0.249 / 0.5
     np.testing.assert_allclose(sim.normal_forces[sliding][0],
                                [MASS * G / 2 * (1 + split), MASS * G / 2 * (1 - split)],
