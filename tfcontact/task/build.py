@@ -182,8 +182,8 @@ def build_task(task: Task) -> TaskSetup:
     periodicity = None
     if task.period is not None:
         periodicity = Periodicity(tuple(state_names.index(n) for n in task.periodic),
-                                  _intervals(task, task.period, "period"),
-                                  _intervals(task, task.period_from, "period_from"))
+                                  _interval_count(task, task.period, "period"),
+                                  _interval_count(task, task.period_from, "period_from"))
     for name in task.periodic if task.period is None else ():
         # a gait's period: the state ends where it started
         i = state_names.index(name)
@@ -325,7 +325,7 @@ def _check_names(task: Task, state_names: list[str], frames: list[str]) -> None:
                                f"{kind}: {', '.join(allowed)}")
 
 
-def _intervals(task: Task, duration: float, where: str) -> int:
+def _interval_count(task: Task, duration: float, where: str) -> int:
     """`duration` [s] in control intervals of the task; refused unless a multiple."""
     step = task.horizon / task.n_intervals
     k = round(duration / step)

@@ -53,7 +53,7 @@ def _frozen(mapping: Mapping[str, Any]) -> Mapping[str, Any]:
     return MappingProxyType(dict(mapping))
 
 
-def _intervals(mapping: Mapping[str, Any], where: str) -> Mapping[str, tuple[float, float]]:
+def _ranges(mapping: Mapping[str, Any], where: str) -> Mapping[str, tuple[float, float]]:
     """{name: (low, high)} of a table of [low, high] pairs, each low < high."""
     checked = {}
     for k, pair in _names(mapping, where).items():
@@ -152,7 +152,7 @@ class ContactEntry:
             self.no_slip_gain, f"{where}.no_slip_gain", low=0.0, strict=True, unit="m/s^2"))
         object.__setattr__(self, "eps_t", finite(self.eps_t, f"{where}.eps_t", low=0.0,
                                                  strict=True, unit="m/s"))
-        reach = _intervals(self.reach, f"{where}.reach")
+        reach = _ranges(self.reach, f"{where}.reach")
         if set(reach) - {"x", "y", "z"}:
             raise InvalidInput(f"`{where}.reach` names axes {sorted(set(reach) - set('xyz'))}"
                                "; its axes: x, y, z (of the base's frame)")
@@ -460,7 +460,7 @@ class Task:
         object.__setattr__(self, "effort", _frozen(
             {k: finite(v, f"effort.{k}", low=0.0, strict=True) for k, v in
              _names(self.effort, "effort").items()}))
-        object.__setattr__(self, "bounds", _intervals(self.bounds, "bounds"))
+        object.__setattr__(self, "bounds", _ranges(self.bounds, "bounds"))
         if not isinstance(self.terrain, PlaneTerrain | PrimitiveTerrain):
             raise InvalidInput("`terrain` must be a PlaneTerrain ([terrain] height, normal) "
                                "or a PrimitiveTerrain ([[terrain.primitives]])")
