@@ -719,6 +719,9 @@ def test_a_period_repeats_the_periodic_states_within_the_horizon(task_file):
     _edited(path, 'periodic = ["z", "v_leg"]\nperiod = 0.9', "period = 0.4")
     with pytest.raises(InvalidInput, match="`period` needs `periodic`"):
         load_task(path)
+    _edited(path, "period = 0.4\n", "")
+    with pytest.raises(InvalidInput, match="`period_from` needs `period`"):
+        load_task(path)
 
 
 def test_a_task_sets_the_homotopys_residual_and_asks_for_an_exact_resolve(task_file):

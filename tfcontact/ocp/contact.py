@@ -44,7 +44,13 @@ from tfcontact.timefreezing import (
     with_lagrange_cost,
     with_speed_of_time,
 )
-from tfcontact.verify import TimeFreezingPlan, Verification, VerifyOptions, check_time_freezing_plan
+from tfcontact.verify import (
+    TimeFreezingPlan,
+    Verification,
+    VerifyOptions,
+    check_time_freezing_plan,
+    state_indices,
+)
 
 
 def _vector(value: object, n: int, default: float, name: str) -> np.ndarray:
@@ -455,8 +461,7 @@ def transcribe(problem: ContactProblem) -> tuple[OptimalControlProblem, TimeFree
     T = problem.horizon
 
     period = problem.periodicity
-    repeated = [] if period is None else np.concatenate(
-        [np.arange(n_y)[tf.q_index], np.arange(n_y)[tf.v_index]])[list(period.states)]
+    repeated = [] if period is None else [state_indices(tf)[i] for i in period.states]
     boundaries: dict[int, ca.SX] = {0: ca.SX(ca.DM(y0))}
 
     def clock_constraint(k: int, y_k: ca.SX) -> Constraint | None:

@@ -101,8 +101,9 @@ class OptimalControlProblem:
         x_lower, x_upper: state bounds at every grid point after x0, (n_x,) or scalar.
         path: `Constraint` in x and u, imposed at every stage and element end point.
         terminal: `Constraint` in x, imposed at x(T).
-        boundary_constraints: hook (k, x_k) -> Constraint | None, called for
-            k = 1..N with the SX state at the interval boundary t_k = k T / N
+        boundary_constraints: hook (k, x_k) -> Constraint | None, called in order for
+            k = 1..N with the SX state at the interval boundary t_k = k T / N (a hook
+            may keep earlier boundaries: `ContactProblem.periodicity` does)
             (time-freezing: clock t_k = k T_phys / N).
         x_guess: initial guess of the state: (n_x,) (constant) or (N + 1, n_x)
             (at the interval boundaries, interpolated linearly); default x0.

@@ -156,11 +156,11 @@ def build_task(task: Task) -> TaskSetup:
             row_lower.append(-np.inf)
             row_upper.append(0.0)
     base = "root_joint" if robot.model.existFrame("root_joint") else "universe"
+    to_base = robot.twin.frame_rotation(base).T
     for entry in task.contacts:
         if not entry.reach:
             continue
-        offset = ca.mtimes(robot.twin.frame_rotation(base).T,
-                           robot.twin.frame_position(entry.frame)
+        offset = ca.mtimes(to_base, robot.twin.frame_position(entry.frame)
                            - robot.twin.frame_position(base))
         for axis, (low, high) in entry.reach.items():
             rows.append(offset["xyz".index(axis)])
@@ -180,16 +180,16 @@ def build_task(task: Task) -> TaskSetup:
         lower_end += [0.0] * len(resting)
         upper_end += [0.5 * RESTING_GAP] * len(resting)
     periodicity = None
-    if task.period is not None:
+    if task.period is not None:  # the states repeat within the horizon
         periodicity = Periodicity(tuple(state_names.index(n) for n in task.periodic),
                                   _interval_count(task, task.period, "period"),
                                   _interval_count(task, task.period_from, "period_from"))
-    for name in task.periodic if task.period is None else ():
-        # a gait's period: the state ends where it started
-        i = state_names.index(name)
-        end_rows.append(x[i] - float(x0[i]))
-        lower_end.append(0.0)
-        upper_end.append(0.0)
+    else:  # a gait's period: the state ends where it started
+        for name in task.periodic:
+            i = state_names.index(name)
+            end_rows.append(x[i] - float(x0[i]))
+            lower_end.append(0.0)
+            upper_end.append(0.0)
     end_constraint = None if not end_rows else Constraint(
         ca.vertcat(*end_rows), lower=np.array(lower_end), upper=np.array(upper_end))
     guess = None

@@ -153,9 +153,10 @@ class ContactEntry:
         object.__setattr__(self, "eps_t", finite(self.eps_t, f"{where}.eps_t", low=0.0,
                                                  strict=True, unit="m/s"))
         reach = _ranges(self.reach, f"{where}.reach")
-        if set(reach) - {"x", "y", "z"}:
-            raise InvalidInput(f"`{where}.reach` names axes {sorted(set(reach) - set('xyz'))}"
-                               "; its axes: x, y, z (of the base's frame)")
+        unknown = sorted(set(reach) - {"x", "y", "z"})
+        if unknown:
+            raise InvalidInput(f"`{where}.reach` names axes {unknown}; its axes: x, y, z "
+                               "(of the base's frame)")
         object.__setattr__(self, "reach", reach)
 
 
@@ -498,6 +499,8 @@ class Task:
                 raise InvalidInput("`period` needs `periodic`: the states that repeat")
             object.__setattr__(self, "period", period)
             object.__setattr__(self, "period_from", start)
+        elif self.period_from != 0.0:
+            raise InvalidInput("`period_from` needs `period`: the gait's period [s]")
         if self.complementarity_tolerance is not None:
             object.__setattr__(self, "complementarity_tolerance", finite(
                 self.complementarity_tolerance, "complementarity_tolerance", low=0.0,
