@@ -43,11 +43,13 @@ def problem(q0, v0, *, horizon, n_intervals, u_lower, u_upper, running):
                           u_lower=u_lower, u_upper=u_upper, running_cost=running(tf))
 
 
-@pytest.mark.parametrize("integrator", ["rk4", "radau"])
-def test_two_drops_touch_down_at_the_free_fall_times_and_stop(integrator):
+@pytest.mark.parametrize(("integrator", "inverse_dynamics"),
+                         [("rk4", False), ("radau", False), ("radau", True)])
+def test_two_drops_touch_down_at_the_free_fall_times_and_stop(integrator, inverse_dynamics):
     """Both masses dropped, the first with a horizontal speed: each touchdown at
     sqrt(2 h / g) (RK4 and Radau IIA integrate free fall exactly), the impact leaves it at rest
-    (Lambda_t = -m v_x inside the cone), and the multi-contact reference agrees."""
+    (Lambda_t = -m v_x inside the cone), and the multi-contact reference agrees; Radau in
+    both forms of the dynamics (explicit and inverse dynamics)."""
     h1, h2, speed = 0.25, 0.6, 0.5  # touchdowns at 0.226 and 0.350 s
     p = problem([0.0, h1, 0.0, h2], [speed, 0.0, 0.0, 0.0], horizon=0.5, n_intervals=5,
                 u_lower=[0.0] * 4, u_upper=[0.0] * 4, running=lambda tf: ca.DM(0.0))
@@ -60,8 +62,8 @@ def test_two_drops_touch_down_at_the_free_fall_times_and_stop(integrator):
     x[:, 3] = np.maximum(h2 - G * t**2 / 2, 0.0)
     stances = (Stance((), 0.0, t1 + 0.01), Stance((0,), t1 + 0.01, t2 - 0.01),
                Stance((0, 1), t2 - 0.01, 0.5))
-    plan = resolve_stances(p, stances, StanceOptions(tol=1e-10, integrator=integrator),
-                           guess=(t, x, np.zeros((5, 4))), verbose=False)
+    options = StanceOptions(tol=1e-10, integrator=integrator, inverse_dynamics=inverse_dynamics)
+    plan = resolve_stances(p, stances, options, guess=(t, x, np.zeros((5, 4))), verbose=False)
     assert plan.solved, plan.ipopt_status
     assert [s.closed for s in plan.stances] == [(), (0,), (0, 1)]
     assert plan.stances[1].start == pytest.approx(t1, abs=1e-7)
@@ -74,10 +76,12 @@ def test_two_drops_touch_down_at_the_free_fall_times_and_stop(integrator):
     assert plan.verification.end_state_deviation < 1e-6
 
 
-def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens():
+@pytest.mark.parametrize("inverse_dynamics", [False, True])
+def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens(inverse_dynamics):
     """Mass 1 rests and is pushed sideways as hard as it can while it sticks: the push
     reaches c mu m g (the cone's edge) and it does not move. Mass 2 lifts off at the
-    control jump 0.2 s: the new control's vertical force is at least its weight."""
+    control jump 0.2 s: the new control's vertical force is at least its weight. Both
+    forms of the dynamics (the forces as expressions or as variables)."""
     margin = 0.9
     p = problem([0.0, 0.0, 1.0, 0.0], [0.0] * 4, horizon=0.4, n_intervals=4,
                 u_lower=[-20.0, 0.0, 0.0, 0.0], u_upper=[20.0, 0.0, 0.0, 40.0],
@@ -88,7 +92,8 @@ def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens():
     x[:, 2] = 1.0
     x[:, 3] = np.where(t > 0.2, 0.5 * (t - 0.2), 0.0)
     stances = (Stance((0, 1), 0.0, 0.2), Stance((0,), 0.2, 0.4))
-    plan = resolve_stances(p, stances, StanceOptions(cone_margin=margin, tol=1e-10),
+    plan = resolve_stances(p, stances, StanceOptions(cone_margin=margin, tol=1e-10,
+                                                     inverse_dynamics=inverse_dynamics),
                            guess=(t, x, np.zeros((4, 4))), verbose=False)
     assert plan.solved, plan.ipopt_status
     np.testing.assert_allclose(plan.u[:, 0], margin * MU * MASSES[0] * G, rtol=1e-6)
@@ -157,6 +162,10 @@ def test_bad_schedules_are_refused():
                         (Stance((0, 1), 0.0, 0.4),), guess=guess, verbose=False)
     with pytest.raises(InvalidInput, match="cone_margin"):
         StanceOptions(cone_margin=1.5)
+    with pytest.raises(InvalidInput, match="inverse_dynamics.*radau"):
+        StanceOptions(integrator="rk4", inverse_dynamics=True)
+    with pytest.raises(InvalidInput, match="inverse_dynamics"):
+        StanceOptions(inverse_dynamics=None)
 
 
 def test_an_open_contact_with_a_slip_gain_lands_without_sliding():
@@ -221,3 +230,35 @@ def test_a_standing_foots_velocity_error_does_not_fail_the_restart():
         start_gap_tolerance=1e-3, velocity_tolerance=RESTART_VELOCITY_TOLERANCE))
     assert restart.success, restart.message
     assert np.max(np.abs(restart.final_state() - plan_end)) < 1e-5
+
+
+def test_the_inverse_dynamics_rows_vanish_at_the_explicit_acceleration_and_forces():
+    """`StanceDynamics.inverse` (M a = f + J lambda, J^T a + drift = -stab) is zero at the
+    explicit form's a(x, u) and lambda(x, u) for every stance, on a system with a coupled,
+    configuration-dependent mass matrix and curved gaps (drift terms), and not zero for
+    another acceleration."""
+    from tfcontact.ocp.stances import StanceDynamics
+
+    rng = np.random.default_rng(3)
+    q, v, u = ca.SX.sym("q", 4), ca.SX.sym("v", 4), ca.SX.sym("u", 4)
+    root = rng.standard_normal((4, 4))
+    mass = ca.DM(root @ root.T + 4 * np.eye(4)) * (1 + 0.1 * ca.sin(q[0]))
+    contacts = tuple(
+        Contact(gap=q[2 * i + 1] + 0.1 * ca.sin(q[2 * i]) ** 2,
+                tangents=ca.jacobian(q[2 * i], q).T, mu=MU, name=f"m{i}")
+        for i in range(2))
+    cls = ComplementarityLagrangianSystem(
+        q=q, v=v, u=u, mass_matrix=mass, forces=u - ca.vertcat(0, G, 0, G) + 0.3 * v,
+        contacts=contacts)
+    dyn = StanceDynamics(cls)
+    for closed in [(), (0,), (1,), (0, 1)]:
+        for _ in range(3):
+            x, control = rng.standard_normal(8), rng.standard_normal(4)
+            a = np.asarray(dyn.acceleration(closed)(x, control)).ravel()
+            lam = (np.asarray(dyn.force(closed)(x, control)).ravel() if closed
+                   else np.zeros(0))
+            rows = np.asarray(dyn.inverse(closed)(x, control, a, lam)).ravel()
+            assert rows.shape == (4 + 2 * len(closed),)
+            np.testing.assert_allclose(rows, 0.0, atol=1e-10)
+            other = np.asarray(dyn.inverse(closed)(x, control, a + 0.01, lam)).ravel()
+            assert np.max(np.abs(other)) > 1e-3

@@ -27,7 +27,9 @@ system's dynamics, contact-accurate by construction:
 
 Controls are piecewise constant on the fixed grid k T / N; every piece between two
 switches is integrated by RK4 (multiple shooting, `nodes` per interval and
-`steps_per_node` RK4 steps between two nodes) or by Radau IIA collocation. The plan is
+`steps_per_node` RK4 steps between two nodes) or by Radau IIA collocation, whose stages
+take a and lambda as expressions of (x, u) or, opt-in (`StanceOptions.inverse_dynamics`),
+as variables bound by the stance's equations (no M^-1 in the NLP). The plan is
 checked by the multi-contact reference (the open-loop replay, local defects per control
 interval, the amplification of a kicked replay), the gaps and the cone at the nodes.
 
@@ -49,7 +51,7 @@ from tfcontact.errors import InvalidInput, SolveFailed, positive_int
 from tfcontact.fesd.tableau import RadauIIA
 from tfcontact.ocp.contact import ContactProblem, ContactResult
 from tfcontact.ocp.nodes import NodeFunctions, interpolate, report_progress, solve_guarded
-from tfcontact.ocp.polish import collocation_residuals
+from tfcontact.ocp.polish import collocation_residuals, collocation_rows
 from tfcontact.verify import (
     EvaluationBudget,
     MultiContactOptions,
@@ -101,6 +103,15 @@ class StanceOptions:
             slid along the ground at zero gap, a contact the stance does not model, and
             the reference's restarts parted from the plan by up to 3.6. Empty: no rows.
             A task's no-slip contacts get their `no_slip_gain` (`StanceResolve`).
+        inverse_dynamics: the stance dynamics in inverse-dynamics form (Radau only; RK4
+            needs the explicit a(x, u)): every stage state gets its acceleration a and the
+            closed contacts' forces lambda as NLP variables with the rows
+            M(q) a = f + J_S lambda and J_S^T a + (dJ_S/dt)^T v = -(stabilisation), so no
+            expression holds M^-1 or the Delassus matrix's inverse, and the NLP is
+            expanded into one SX graph. Opt-in: on bolt's walks an iteration took 0.15 s
+            against the explicit form's 0.52 s (whose Hessian alone took 0.32 s), but
+            IPOPT needed far more of them: 245 iterations (144 s) explicit against more
+            than 2000 for a one-step walk (benchmarks/legged.md).
         tol, max_iter: IPOPT's.
         blas_threads: threads of IPOPT's BLAS during the solve (None: as set).
         end_state_tolerance, gap_tolerance, cone_tolerance: the verification's.
@@ -118,6 +129,7 @@ class StanceOptions:
     contact_gap: float = 1e-3
     switch_margin: float = 0.02
     open_slip_gains: tuple[float | None, ...] = ()
+    inverse_dynamics: bool = False
     tol: float = 1e-8
     max_iter: int = 3000
     blas_threads: int | None = 2
@@ -129,6 +141,12 @@ class StanceOptions:
     def __post_init__(self) -> None:
         if self.integrator not in ("rk4", "radau"):
             raise InvalidInput(f"`integrator` must be 'rk4' or 'radau', got {self.integrator!r}")
+        if not isinstance(self.inverse_dynamics, bool):
+            raise InvalidInput(f"`inverse_dynamics` must be True or False, got "
+                               f"{self.inverse_dynamics!r}")
+        if self.inverse_dynamics and self.integrator == "rk4":
+            raise InvalidInput("`inverse_dynamics` needs integrator='radau' (RK4 integrates "
+                               "the explicit form a(x, u))")
         for name in ("nodes", "steps_per_node", "radau_stages", "max_iter", "budget"):
             positive_int(getattr(self, name), name)
         if self.blas_threads is not None:
@@ -314,6 +332,31 @@ class StanceDynamics:
         """(x, u) -> the closed contacts' forces [N], per contact lambda_n then lambda_t."""
         return self._stance(closed)["force"]
 
+    def acceleration(self, closed: tuple[int, ...]) -> ca.Function:
+        """(x, u) -> the acceleration a of stance `closed` (explicit form)."""
+        key = (closed, "acceleration")
+        if key not in self._cache:
+            self._cache[key] = ca.Function("acceleration", [self._x, self._u],
+                                           [self._stance(closed)["acc"]])
+        return self._cache[key]
+
+    def inverse(self, closed: tuple[int, ...]) -> ca.Function:
+        """(x, u, a, lambda) -> (M a - f - J_S lambda, J_S^T a + (dJ_S/dt)^T v + stab):
+        zero where a and lambda are stance `closed`'s acceleration and forces (the
+        inverse-dynamics form: linear in a and lambda, no M^-1)."""
+        key = (closed, "inverse")
+        if key not in self._cache:
+            cls = self.cls
+            a = ca.SX.sym("a", cls.n_q)
+            lam = ca.SX.sym("lambda", sum(self.sizes(closed)))
+            rows = ca.mtimes(cls.mass_matrix, a) - cls.forces
+            if closed:
+                jac, _, drift, stab, _, _ = self._terms(closed)
+                rows = ca.vertcat(rows - ca.mtimes(jac, lam),
+                                  ca.mtimes(jac.T, a) + drift + stab)
+            self._cache[key] = ca.Function("inverse", [self._x, self._u, a, lam], [rows])
+        return self._cache[key]
+
     def delassus(self, closed: tuple[int, ...]) -> ca.Function:
         """x -> J_S^T M^-1 J_S of a stance with closed contacts."""
         return self._stance(closed)["delassus"]
@@ -333,6 +376,17 @@ class StanceDynamics:
             acc = self._stance(closed)["acc"]
             value = ca.mtimes(normal.T, acc) + ca.jacobian(rate, q) @ v
             self._cache[key] = ca.Function(f"opening_{i}", [self._x, self._u], [value])
+        return self._cache[key]
+
+    def normal_acceleration(self, i: int) -> ca.Function:
+        """(x, a) -> contact i's normal acceleration n_i^T a + (dn_i/dt)^T v."""
+        key = ("normal_acceleration", i)
+        if key not in self._cache:
+            q, v = self.cls.q, self.cls.v
+            normal = self.cls.contacts[i].normal
+            a = ca.SX.sym("a", self.cls.n_q)
+            value = ca.mtimes(normal.T, a) + ca.jacobian(ca.mtimes(normal.T, v), q) @ v
+            self._cache[key] = ca.Function(f"normal_acceleration_{i}", [self._x, a], [value])
         return self._cache[key]
 
     def sizes(self, closed: tuple[int, ...]) -> list[int]:
@@ -522,7 +576,20 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
         switch_at.setdefault(k, []).append((fraction, j))
         switch_times[j] = grid[k] + fraction * dt
 
-    def constrain_node(x, t, u, closed):
+    def lifted_terms(x, u, closed):
+        """(a, lambda) of stance `closed` at the node x under u in the inverse-dynamics
+        form: NLP variables bound by its rows, initialised by the explicit form at the
+        node's initial guess."""
+        a = opti.variable(n_q)
+        lam = opti.variable(sum(dyn.sizes(closed))) if closed else ca.MX(0, 1)
+        opti.subject_to(dyn.inverse(closed)(x, u, a, lam) == 0)
+        x_init, u_init = (opti.value(e, opti.initial()) for e in (x, u))
+        opti.set_initial(a, dyn.acceleration(closed)(x_init, u_init))
+        if closed:
+            opti.set_initial(lam, dyn.force(closed)(x_init, u_init))
+        return a, lam
+
+    def constrain_node(x, t, u, closed, force=None):
         if bounded:
             opti.subject_to(opti.bounded(lower[bounded], x[bounded], upper[bounded]))
         if path_fn is not None:
@@ -530,9 +597,9 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
             opti.subject_to(opti.bounded(np.broadcast_to(path.lower, size),
                                          path_fn(y_of(x, t), u),
                                          np.broadcast_to(path.upper, size)))
-        contact_rows(x, u, closed)
+        contact_rows(x, u, closed, force)
 
-    def contact_rows(x, u, closed):
+    def contact_rows(x, u, closed, force=None):
         open_ = [i for i in range(cls.n_contacts) if i not in closed]
         if open_:
             opti.subject_to(dyn.gaps(x)[open_] >= 0)
@@ -540,7 +607,12 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
             if gains[i] is not None:  # no skimming: v_t = 0 where the gap is zero
                 opti.subject_to(gains[i] * dyn.gaps(x)[i] - dyn.slip_squared(x)[i] >= 0)
         if closed:
-            lam = dyn.force(closed)(x, u)
+            if force is not None:
+                lam = force
+            elif options.inverse_dynamics:
+                lam = lifted_terms(x, u, closed)[1]
+            else:
+                lam = dyn.force(closed)(x, u)
             for row in cone_rows(lam, dyn.sizes(closed), dyn.mu, closed,
                                  options.cone_margin):
                 opti.subject_to(row >= 0)
@@ -557,10 +629,17 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
         u_k = controls[k, :].T
         if k in lift_offs:  # the control jump opens contacts: they accelerate away
             j = lift_offs[k]
-            for i in set(stances[j - 1].closed) - set(stances[j].closed):
-                opti.subject_to(dyn.opening(stances[j].closed, i)(x, u_k) >= 0)
+            lifting = set(stances[j - 1].closed) - set(stances[j].closed)
+            if options.inverse_dynamics:
+                acc, lam = lifted_terms(x, u_k, stances[j].closed)
+                openings = [dyn.normal_acceleration(i)(x, acc) for i in lifting]
+            else:
+                lam = None
+                openings = [dyn.opening(stances[j].closed, i)(x, u_k) for i in lifting]
+            for opening in openings:
+                opti.subject_to(opening >= 0)
             current = j
-            contact_rows(x, u_k, stances[current].closed)
+            contact_rows(x, u_k, stances[current].closed, lam)
         elif k > 0:  # the stance holds on both sides of the control jump
             contact_rows(x, u_k, stances[current].closed)
         cuts = ([(grid[k], grid[k], None)]
@@ -580,15 +659,24 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                         opti.set_initial(z, interpolate(
                             guess_t, guess_x, ga + (i + tableau.c[j]) * (gb - ga) / n_steps))
                         stages.append(z)
-                    residuals = collocation_residuals(dyn.rhs(closed), tableau, x, stages,
-                                                      u_k, h)
+                    if options.inverse_dynamics:
+                        terms = [lifted_terms(z, u_k, closed) for z in stages]
+                        residuals = collocation_rows(
+                            tableau, x, stages, [ca.vertcat(z[n_q:], a)
+                                                 for z, (a, _) in zip(stages, terms,
+                                                                      strict=True)], h)
+                        forces = [lam for _, lam in terms]
+                    else:
+                        residuals = collocation_residuals(dyn.rhs(closed), tableau, x,
+                                                          stages, u_k, h)
+                        forces = [None] * len(stages)
                     for j, (z, residual) in enumerate(zip(stages, residuals, strict=True)):
                         opti.subject_to(residual == 0)
                         t_stage = t0 + tableau.c[j] * h
                         cost = cost + h * tableau.b[j] * running(y_of(z, t_stage), u_k)
                         last = i == n_steps - 1 and j == tableau.stages - 1
                         nodes.append((tb if last else t_stage, z))
-                        constrain_node(z, t_stage, u_k, closed)
+                        constrain_node(z, t_stage, u_k, closed, forces[j])
                     x = stages[-1]
                     continue
                 x_next = dyn.rk4(closed, options.steps_per_node)(x, u_k, h)
@@ -624,7 +712,9 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
         opti.subject_to(opti.bounded(np.broadcast_to(terminal.lower, size), terminal_fn(y_end),
                                      np.broadcast_to(terminal.upper, size)))
     opti.minimize(cost + terminal_cost(y_end))
-    opti.solver("ipopt", {"print_time": False, "expand": False},
+    # the lifted NLP expands into one SX graph cheaply (bolt's walk: 0.5 GB); the explicit
+    # form's did not (more than 15 GB with RK4: `StanceDynamics.rk4`)
+    opti.solver("ipopt", {"print_time": False, "expand": options.inverse_dynamics},
                 {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0,
                  "sb": "yes"})
     if verbose:

@@ -333,8 +333,11 @@ class StanceResolve(Stage):
         solver = {"status": status, "objective": plan.cost, "wall_time": plan.solve_time,
                   "ipopt_status": plan.ipopt_status, "iterations": plan.iterations,
                   "stances": [dataclasses.asdict(s) for s in plan.stances],
-                  "method": "exact re-solve along the stances (tfcontact.ocp.stances): RK4 "
-                            "multiple shooting on the fixed control grid",
+                  "method": "exact re-solve along the stances (tfcontact.ocp.stances): "
+                            + ("Radau IIA collocation" if options.integrator == "radau"
+                               else "RK4 multiple shooting")
+                            + (", inverse-dynamics form" if options.inverse_dynamics else "")
+                            + " on the fixed control grid",
                   "discovery": {"status": result.status, "objective": result.ocp.cost,
                                 "iterations": result.ocp.total_iterations}}
         directions = (None if setup.terrain is None
