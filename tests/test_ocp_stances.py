@@ -76,6 +76,36 @@ def test_two_drops_touch_down_at_the_free_fall_times_and_stop(integrator, invers
     assert plan.verification.end_state_deviation < 1e-6
 
 
+def test_a_capped_nlp_solved_again_from_its_iterate_converges():
+    """`capped_restarts`: the two drops with IPOPT capped at 4 iterations stop short of
+    the closed forms; solved again from their primal-dual iterate they reach them, in the
+    iterations the uncapped solve takes (no fresh start from the interior)."""
+    h1, h2, speed = 0.25, 0.6, 0.5
+    p = problem([0.0, h1, 0.0, h2], [speed, 0.0, 0.0, 0.0], horizon=0.5, n_intervals=5,
+                u_lower=[0.0] * 4, u_upper=[0.0] * 4, running=lambda tf: ca.DM(0.0))
+    t1, t2 = np.sqrt(2 * h1 / G), np.sqrt(2 * h2 / G)
+    t = np.linspace(0.0, 0.5, 201)
+    x = np.zeros((len(t), 8))
+    x[:, 0] = speed * np.minimum(t, t1 + 0.01)
+    x[:, 1] = np.maximum(h1 - G * t**2 / 2, 0.0)
+    x[:, 3] = np.maximum(h2 - G * t**2 / 2, 0.0)
+    stances = (Stance((), 0.0, t1 + 0.01), Stance((0,), t1 + 0.01, t2 - 0.01),
+               Stance((0, 1), t2 - 0.01, 0.5))
+    runs = {restarts: resolve_stances(p, stances, StanceOptions(tol=1e-10, max_iter=4,
+                                                                capped_restarts=restarts),
+                                      guess=(t, x, np.zeros((5, 4))), verbose=False)
+            for restarts in (0, 5)}
+    uncapped = resolve_stances(p, stances, StanceOptions(tol=1e-10), guess=(t, x, np.zeros(
+        (5, 4))), verbose=False)
+    assert runs[0].ipopt_status == "Maximum_Iterations_Exceeded"
+    assert abs(runs[0].stances[2].start - t2) > 1e-4
+    assert runs[5].solved and runs[5].iterations <= uncapped.iterations + 2
+    assert runs[5].stances[1].start == pytest.approx(t1, abs=1e-7)
+    assert runs[5].stances[2].start == pytest.approx(t2, abs=1e-7)
+    with pytest.raises(InvalidInput, match="capped_restarts"):
+        StanceOptions(capped_restarts=-1)
+
+
 @pytest.mark.parametrize("inverse_dynamics", [False, True])
 def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens(inverse_dynamics):
     """Mass 1 rests and is pushed sideways as hard as it can while it sticks: the push

@@ -71,6 +71,10 @@ velocity this small counts as zero at a mode change (and is projected to zero). 
 contact's velocity is zero in the plan to the integrator's accuracy only: a bolt restart
 whose standing foot moved up at 1.4e-7 m/s (the simulator's default tolerance 1e-7) flew
 and landed back 200 times at its start; with 1e-6 it stood, 3e-6 from the plan."""
+CAPPED = "Maximum_Iterations_Exceeded"
+RESTART_PUSH = 1e-9
+"""A capped stance NLP solved again starts from its iterate with the barrier parameter
+and IPOPT's warm-start pushes at this value (as `tfcontact.mpcc.Ipopt.warm_start_push`)."""
 SINGULAR_DELASSUS = 1e10
 """A stance whose Delassus matrix has a larger condition number is refused."""
 
@@ -113,6 +117,8 @@ class StanceOptions:
             IPOPT needed far more of them: 245 iterations (144 s) explicit against more
             than 2000 for a one-step walk (benchmarks/legged.md).
         tol, max_iter: IPOPT's.
+        capped_restarts: solves of the same NLP again, each from the last one's primal-dual
+            iterate, after IPOPT stopped at `max_iter` (each up to `max_iter` more).
         blas_threads: threads of IPOPT's BLAS during the solve (None: as set).
         end_state_tolerance, gap_tolerance, cone_tolerance: the verification's.
         budget: model evaluations of the multi-contact reference for the replay and all
@@ -132,6 +138,7 @@ class StanceOptions:
     inverse_dynamics: bool = False
     tol: float = 1e-8
     max_iter: int = 3000
+    capped_restarts: int = 0
     blas_threads: int | None = 2
     end_state_tolerance: float = VerifyOptions.end_state_tolerance
     gap_tolerance: float = VerifyOptions.gap_tolerance
@@ -149,6 +156,10 @@ class StanceOptions:
                                "the explicit form a(x, u))")
         for name in ("nodes", "steps_per_node", "radau_stages", "max_iter", "budget"):
             positive_int(getattr(self, name), name)
+        if (not isinstance(self.capped_restarts, int) or isinstance(self.capped_restarts, bool)
+                or self.capped_restarts < 0):
+            raise InvalidInput(f"`capped_restarts` must be an integer >= 0, got "
+                               f"{self.capped_restarts!r}")
         if self.blas_threads is not None:
             positive_int(self.blas_threads, "blas_threads")
         if not 0 < self.cone_margin <= 1:
@@ -714,15 +725,33 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     opti.minimize(cost + terminal_cost(y_end))
     # the lifted NLP expands into one SX graph cheaply (bolt's walk: 0.5 GB); the explicit
     # form's did not (more than 15 GB with RK4: `StanceDynamics.rk4`)
-    opti.solver("ipopt", {"print_time": False, "expand": options.inverse_dynamics},
-                {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0,
-                 "sb": "yes"})
+    ipopt = {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0, "sb": "yes"}
+    opti.solver("ipopt", {"print_time": False, "expand": options.inverse_dynamics}, ipopt)
     if verbose:
         report_progress(opti)
     sol = solve_guarded(opti, options.blas_threads)
     stats = sol.stats()
     status = str(stats.get("return_status", "unknown"))
     iterations = int(stats.get("iter_count", 0))
+    for restart in range(options.capped_restarts):
+        if status != CAPPED:
+            break
+        # the same NLP from its last primal-dual iterate, IPOPT's state (barrier, filter,
+        # regularisation) fresh: a cold restart pushed the iterate back into the interior
+        # (bolt's walk: objective 3.2 -> 6.8)
+        if verbose:
+            print(f"stances: IPOPT's cap reached; solving again from its iterate "
+                  f"({restart + 1} of {options.capped_restarts})", flush=True)
+        opti.set_initial(sol.value_variables())
+        opti.set_initial(opti.lam_g, sol.value(opti.lam_g))
+        opti.solver("ipopt", {"print_time": False, "expand": options.inverse_dynamics},
+                    {**ipopt, "warm_start_init_point": "yes", "mu_init": RESTART_PUSH,
+                     "warm_start_bound_push": RESTART_PUSH,
+                     "warm_start_mult_bound_push": RESTART_PUSH})
+        sol = solve_guarded(opti, options.blas_threads)
+        stats = sol.stats()
+        status = str(stats.get("return_status", "unknown"))
+        iterations += int(stats.get("iter_count", 0))
     u_value = (np.asarray(sol.value(controls)).reshape(n_int, n_u) if n_u
                else np.zeros((n_int, 0)))
     node_x = np.array([np.asarray(sol.value(xn)).ravel() for _, xn in nodes])
