@@ -43,18 +43,17 @@ def problem(q0, v0, *, horizon, n_intervals, u_lower, u_upper, running):
                           u_lower=u_lower, u_upper=u_upper, running_cost=running(tf))
 
 
-@pytest.mark.parametrize(("integrator", "inverse_dynamics"),
-                         [("rk4", False), ("radau", False), ("radau", True)])
-def test_two_drops_touch_down_at_the_free_fall_times_and_stop(integrator, inverse_dynamics):
-    """Both masses dropped, the first with a horizontal speed: each touchdown at
-    sqrt(2 h / g) (RK4 and Radau IIA integrate free fall exactly), the impact leaves it at rest
-    (Lambda_t = -m v_x inside the cone), and the multi-contact reference agrees; Radau in
-    both forms of the dynamics (explicit and inverse dynamics)."""
-    h1, h2, speed = 0.25, 0.6, 0.5  # touchdowns at 0.226 and 0.350 s
+DROP_HEIGHTS, DROP_SPEED = (0.25, 0.6), 0.5  # touchdowns at 0.226 and 0.350 s
+
+
+def two_drops():
+    """Both masses dropped from `DROP_HEIGHTS`, the first moving at `DROP_SPEED`, no
+    controls: the problem, its stances and a guess whose touchdowns are 10 ms off the
+    free-fall times t_i = sqrt(2 h_i / g), which are returned last."""
+    (h1, h2), speed = DROP_HEIGHTS, DROP_SPEED
     p = problem([0.0, h1, 0.0, h2], [speed, 0.0, 0.0, 0.0], horizon=0.5, n_intervals=5,
                 u_lower=[0.0] * 4, u_upper=[0.0] * 4, running=lambda tf: ca.DM(0.0))
     t1, t2 = np.sqrt(2 * h1 / G), np.sqrt(2 * h2 / G)
-    # a guess off by 10 ms: the re-solve moves the switches to the closed forms
     t = np.linspace(0.0, 0.5, 201)
     x = np.zeros((len(t), 8))
     x[:, 0] = speed * np.minimum(t, t1 + 0.01)
@@ -62,14 +61,26 @@ def test_two_drops_touch_down_at_the_free_fall_times_and_stop(integrator, invers
     x[:, 3] = np.maximum(h2 - G * t**2 / 2, 0.0)
     stances = (Stance((), 0.0, t1 + 0.01), Stance((0,), t1 + 0.01, t2 - 0.01),
                Stance((0, 1), t2 - 0.01, 0.5))
+    return p, stances, (t, x, np.zeros((5, 4))), (t1, t2)
+
+
+@pytest.mark.parametrize(("integrator", "inverse_dynamics"),
+                         [("rk4", False), ("radau", False), ("radau", True)])
+def test_two_drops_touch_down_at_the_free_fall_times_and_stop(integrator, inverse_dynamics):
+    """Both masses dropped, the first with a horizontal speed: each touchdown at
+    sqrt(2 h / g) (RK4 and Radau IIA integrate free fall exactly), the impact leaves it at rest
+    (Lambda_t = -m v_x inside the cone), and the multi-contact reference agrees; Radau in
+    both forms of the dynamics (explicit and inverse dynamics). The guess is 10 ms off: the
+    re-solve moves the switches to the closed forms."""
+    p, stances, guess, (t1, t2) = two_drops()
     options = StanceOptions(tol=1e-10, integrator=integrator, inverse_dynamics=inverse_dynamics)
-    plan = resolve_stances(p, stances, options, guess=(t, x, np.zeros((5, 4))), verbose=False)
+    plan = resolve_stances(p, stances, options, guess=guess, verbose=False)
     assert plan.solved, plan.ipopt_status
     assert [s.closed for s in plan.stances] == [(), (0,), (0, 1)]
     assert plan.stances[1].start == pytest.approx(t1, abs=1e-7)
     assert plan.stances[2].start == pytest.approx(t2, abs=1e-7)
     end = plan.boundary_states[-1]
-    assert end[0] == pytest.approx(speed * t1, abs=1e-6)  # slid no further after landing
+    assert end[0] == pytest.approx(DROP_SPEED * t1, abs=1e-6)  # slid no further after landing
     np.testing.assert_allclose(end[[1, 3]], 0.0, atol=1e-7)
     np.testing.assert_allclose(end[4:], 0.0, atol=1e-7)
     assert plan.verification.passed, plan.verification.summary()
@@ -80,23 +91,13 @@ def test_a_capped_nlp_solved_again_from_its_iterate_converges():
     """`capped_restarts`: the two drops with IPOPT capped at 4 iterations stop short of
     the closed forms; solved again from their primal-dual iterate they reach them, in the
     iterations the uncapped solve takes (no fresh start from the interior)."""
-    h1, h2, speed = 0.25, 0.6, 0.5
-    p = problem([0.0, h1, 0.0, h2], [speed, 0.0, 0.0, 0.0], horizon=0.5, n_intervals=5,
-                u_lower=[0.0] * 4, u_upper=[0.0] * 4, running=lambda tf: ca.DM(0.0))
-    t1, t2 = np.sqrt(2 * h1 / G), np.sqrt(2 * h2 / G)
-    t = np.linspace(0.0, 0.5, 201)
-    x = np.zeros((len(t), 8))
-    x[:, 0] = speed * np.minimum(t, t1 + 0.01)
-    x[:, 1] = np.maximum(h1 - G * t**2 / 2, 0.0)
-    x[:, 3] = np.maximum(h2 - G * t**2 / 2, 0.0)
-    stances = (Stance((), 0.0, t1 + 0.01), Stance((0,), t1 + 0.01, t2 - 0.01),
-               Stance((0, 1), t2 - 0.01, 0.5))
+    p, stances, guess, (t1, t2) = two_drops()
     runs = {restarts: resolve_stances(p, stances, StanceOptions(tol=1e-10, max_iter=4,
                                                                 capped_restarts=restarts),
-                                      guess=(t, x, np.zeros((5, 4))), verbose=False)
+                                      guess=guess, verbose=False)
             for restarts in (0, 5)}
-    uncapped = resolve_stances(p, stances, StanceOptions(tol=1e-10), guess=(t, x, np.zeros(
-        (5, 4))), verbose=False)
+    uncapped = resolve_stances(p, stances, StanceOptions(tol=1e-10), guess=guess,
+                               verbose=False)
     assert runs[0].ipopt_status == "Maximum_Iterations_Exceeded"
     assert abs(runs[0].stances[2].start - t2) > 1e-4
     assert runs[5].solved and runs[5].iterations <= uncapped.iterations + 2
