@@ -24,6 +24,7 @@ import numpy as np
 from tfcontact.errors import InvalidInput
 from tfcontact.native import return_memory
 from tfcontact.ocp.contact import ContactProblem, ContactResult
+from tfcontact.ocp.nodes import CAPPED
 from tfcontact.ocp.polish import (
     Phase,
     PolishedPlan,
@@ -33,8 +34,6 @@ from tfcontact.ocp.polish import (
     refined_substeps,
 )
 
-CAPPED = "Maximum_Iterations_Exceeded"
-"""IPOPT's status at its iteration cap: the level's iterate goes on to the next level."""
 PATH_TOLERANCE = 1e-6
 """A plan whose path constraints are violated by more than this at a node fails."""
 

@@ -16,6 +16,8 @@ from tfcontact.native import blas_threads
 
 PROGRESS_EVERY = 250
 """A verbose re-solve prints a line every this many IPOPT iterations."""
+CAPPED = "Maximum_Iterations_Exceeded"
+"""IPOPT's status at its iteration cap (the re-solves carry such an iterate on)."""
 
 
 @dataclass(frozen=True, eq=False)

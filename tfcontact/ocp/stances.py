@@ -50,7 +50,13 @@ import numpy as np
 from tfcontact.errors import InvalidInput, SolveFailed, positive_int
 from tfcontact.fesd.tableau import RadauIIA
 from tfcontact.ocp.contact import ContactProblem, ContactResult
-from tfcontact.ocp.nodes import NodeFunctions, interpolate, report_progress, solve_guarded
+from tfcontact.ocp.nodes import (
+    CAPPED,
+    NodeFunctions,
+    interpolate,
+    report_progress,
+    solve_guarded,
+)
 from tfcontact.ocp.polish import collocation_residuals, collocation_rows
 from tfcontact.verify import (
     EvaluationBudget,
@@ -71,7 +77,6 @@ velocity this small counts as zero at a mode change (and is projected to zero). 
 contact's velocity is zero in the plan to the integrator's accuracy only: a bolt restart
 whose standing foot moved up at 1.4e-7 m/s (the simulator's default tolerance 1e-7) flew
 and landed back 200 times at its start; with 1e-6 it stood, 3e-6 from the plan."""
-CAPPED = "Maximum_Iterations_Exceeded"
 RESTART_PUSH = 1e-9
 """A capped stance NLP solved again starts from its iterate with the barrier parameter
 and IPOPT's warm-start pushes at this value (as `tfcontact.mpcc.Ipopt.warm_start_push`)."""
