@@ -106,6 +106,8 @@ class StanceOptions:
         flight_gap, contact_gap: `stance_schedule` opens a contact above `flight_gap` [m]
             and closes it again below `contact_gap` [m].
         switch_margin: touchdowns keep this fraction of a control interval from its ends.
+            With 0.002 bolt's walks found cheaper plans, but one put a touchdown 0.1 ms
+            before a lift-off, and the reference failed it (benchmarks/legged.md).
         open_slip_gains: per contact K [m/s^2] or None; a contact with K gets the rows
             ||v_t||^2 <= K gap at the nodes where it is open: it does not skim the ground
             (at zero gap it moves along the normal only). Without them bolt's swing foot
