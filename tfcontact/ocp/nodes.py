@@ -1,7 +1,7 @@
 """What the exact re-solves (`polish`: one contact; `stances`: several) share: a contact
 problem's rows and costs as functions of a node's state x = (q, v), its time and control,
-a guess read off a sampled trajectory, and an Opti solve that reports its progress and
-stops on Ctrl-C."""
+a guess read off a sampled trajectory, the collocation equations of an element, and an
+Opti solve that reports its progress and stops on Ctrl-C."""
 
 from __future__ import annotations
 
@@ -102,3 +102,17 @@ def solve_guarded(opti: ca.Opti, threads: int | None):
             return opti.solve()
     except RuntimeError:
         return opti.debug
+
+
+def collocation_residuals(rhs, tableau, x, stages, u, h) -> list:
+    """The collocation equations of one element from state x over [0, h]:
+    z_j - x - h sum_m A_jm rhs(z_m, u), one per stage state z_j (each zero at a solution;
+    with Radau IIA the last stage is the element's end). Numbers or CasADi expressions."""
+    return collocation_rows(tableau, x, stages, [rhs(z, u) for z in stages], h)
+
+
+def collocation_rows(tableau, x, stages, slopes, h) -> list:
+    """`collocation_residuals` with the stages' slopes given (e.g. (v, a) with the
+    accelerations a as variables of the inverse-dynamics form)."""
+    return [z - x - h * sum(tableau.A[j, m] * slopes[m] for m in range(len(stages)))
+            for j, z in enumerate(stages)]

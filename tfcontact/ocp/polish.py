@@ -48,7 +48,13 @@ import numpy as np
 from tfcontact.errors import InvalidInput, TfcontactError, positive_int
 from tfcontact.fesd.tableau import RadauIIA
 from tfcontact.ocp.contact import ContactProblem, ContactResult
-from tfcontact.ocp.nodes import NodeFunctions, interpolate, report_progress, solve_guarded
+from tfcontact.ocp.nodes import (
+    NodeFunctions,
+    collocation_residuals,
+    interpolate,
+    report_progress,
+    solve_guarded,
+)
 from tfcontact.verify import (
     LOCAL_DEFECT_IMPACT_WINDOW,
     ReplayedPlan,
@@ -396,20 +402,6 @@ def touchdown_rows(w, v_n, v_t, sign: float, mu, cone_margin=1.0) -> list[tuple]
     return [(sign * v_t, 0), (rate_n, 1e-3), (rate_t, 1e-3),
             (-v_n * rate_t, sign * v_t * rate_n),
             (cone_margin * mu * w[1, 1] - w[1, 0], 0), (cone_margin * mu * w[1, 1] + w[1, 0], 0)]
-
-
-def collocation_residuals(rhs, tableau, x, stages, u, h) -> list:
-    """The collocation equations of one element from state x over [0, h]:
-    z_j - x - h sum_m A_jm rhs(z_m, u), one per stage state z_j (each zero at a solution;
-    with Radau IIA the last stage is the element's end). Numbers or CasADi expressions."""
-    return collocation_rows(tableau, x, stages, [rhs(z, u) for z in stages], h)
-
-
-def collocation_rows(tableau, x, stages, slopes, h) -> list:
-    """`collocation_residuals` with the stages' slopes given (e.g. (v, a) with the
-    accelerations a as variables of the inverse-dynamics form)."""
-    return [z - x - h * sum(tableau.A[j, m] * slopes[m] for m in range(len(stages)))
-            for j, z in enumerate(stages)]
 
 
 def guess_from_result(result: ContactResult) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

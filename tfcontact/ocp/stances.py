@@ -53,11 +53,12 @@ from tfcontact.ocp.contact import ContactProblem, ContactResult
 from tfcontact.ocp.nodes import (
     CAPPED,
     NodeFunctions,
+    collocation_residuals,
+    collocation_rows,
     interpolate,
     report_progress,
     solve_guarded,
 )
-from tfcontact.ocp.polish import collocation_residuals, collocation_rows
 from tfcontact.verify import (
     EvaluationBudget,
     MultiContactOptions,
@@ -388,11 +389,7 @@ class StanceDynamics:
         `closed` (>= 0: it opens)."""
         key = (closed, "opening", i)
         if key not in self._cache:
-            q, v = self.cls.q, self.cls.v
-            normal = self.cls.contacts[i].normal
-            rate = ca.mtimes(normal.T, v)
-            acc = self._stance(closed)["acc"]
-            value = ca.mtimes(normal.T, acc) + ca.jacobian(rate, q) @ v
+            value = self.normal_acceleration(i)(self._x, self._stance(closed)["acc"])
             self._cache[key] = ca.Function(f"opening_{i}", [self._x, self._u], [value])
         return self._cache[key]
 
@@ -732,18 +729,20 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     opti.minimize(cost + terminal_cost(y_end))
     # the lifted NLP expands into one SX graph cheaply (bolt's walk: 0.5 GB); the explicit
     # form's did not (more than 15 GB with RK4: `StanceDynamics.rk4`)
+    plugin = {"print_time": False, "expand": options.inverse_dynamics}
     ipopt = {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0, "sb": "yes"}
-    opti.solver("ipopt", {"print_time": False, "expand": options.inverse_dynamics}, ipopt)
     if verbose:
         report_progress(opti)
-    sol = solve_guarded(opti, options.blas_threads)
-    stats = sol.stats()
-    status = str(stats.get("return_status", "unknown"))
-    iterations = int(stats.get("iter_count", 0))
-    for restart in range(options.capped_restarts):
-        if status != CAPPED:
+    iterations = 0
+    for restart in range(options.capped_restarts + 1):
+        opti.solver("ipopt", plugin, ipopt)
+        sol = solve_guarded(opti, options.blas_threads)
+        stats = sol.stats()
+        status = str(stats.get("return_status", "unknown"))
+        iterations += int(stats.get("iter_count", 0))
+        if status != CAPPED or restart == options.capped_restarts:
             break
-        # the same NLP from its last primal-dual iterate, IPOPT's state (barrier, filter,
+        # the same NLP again from this primal-dual iterate, IPOPT's state (barrier, filter,
         # regularisation) fresh: a cold restart pushed the iterate back into the interior
         # (bolt's walk: objective 3.2 -> 6.8)
         if verbose:
@@ -751,14 +750,8 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                   f"({restart + 1} of {options.capped_restarts})", flush=True)
         opti.set_initial(sol.value_variables())
         opti.set_initial(opti.lam_g, sol.value(opti.lam_g))
-        opti.solver("ipopt", {"print_time": False, "expand": options.inverse_dynamics},
-                    {**ipopt, "warm_start_init_point": "yes", "mu_init": RESTART_PUSH,
-                     "warm_start_bound_push": RESTART_PUSH,
-                     "warm_start_mult_bound_push": RESTART_PUSH})
-        sol = solve_guarded(opti, options.blas_threads)
-        stats = sol.stats()
-        status = str(stats.get("return_status", "unknown"))
-        iterations += int(stats.get("iter_count", 0))
+        ipopt.update(warm_start_init_point="yes", mu_init=RESTART_PUSH,
+                     warm_start_bound_push=RESTART_PUSH, warm_start_mult_bound_push=RESTART_PUSH)
     u_value = (np.asarray(sol.value(controls)).reshape(n_int, n_u) if n_u
                else np.zeros((n_int, 0)))
     node_x = np.array([np.asarray(sol.value(xn)).ravel() for _, xn in nodes])
