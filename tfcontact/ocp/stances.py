@@ -113,7 +113,10 @@ class StanceOptions:
             ||v_t||^2 <= K gap at the nodes where it is open: it does not skim the ground
             (at zero gap it moves along the normal only). Without them bolt's swing foot
             slid along the ground at zero gap, a contact the stance does not model, and
-            the reference's restarts parted from the plan by up to 3.6. Empty: no rows.
+            the reference's restarts parted from the plan by up to 3.6. Not at a contact's
+            own switch nodes (its touchdown's gap = 0, its lift-off), where the row would
+            force v_t = 0 with a vanishing gradient: with it there bolt's one-step walk took
+            562 IPOPT iterations, without it 113 (benchmarks/legged.md). Empty: no rows.
             A task's no-slip contacts get their `no_slip_gain` (`StanceResolve`).
         inverse_dynamics: the stance dynamics in inverse-dynamics form (Radau only; RK4
             needs the explicit a(x, u)): every stage state gets its acceleration a and the
@@ -604,7 +607,7 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
             opti.set_initial(lam, dyn.force(closed)(x_init, u_init))
         return a, lam
 
-    def constrain_node(x, t, u, closed, force=None):
+    def constrain_node(x, t, u, closed, force=None, switching=frozenset()):
         if bounded:
             opti.subject_to(opti.bounded(lower[bounded], x[bounded], upper[bounded]))
         if path_fn is not None:
@@ -612,10 +615,15 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
             opti.subject_to(opti.bounded(np.broadcast_to(path.lower, size),
                                          path_fn(y_of(x, t), u),
                                          np.broadcast_to(path.upper, size)))
-        contact_rows(x, u, closed, force)
+        contact_rows(x, u, closed, force, switching)
 
-    def contact_rows(x, u, closed, force=None):
-        open_ = [i for i in range(cls.n_contacts) if i not in closed]
+    def contact_rows(x, u, closed, force=None, switching=frozenset()):
+        """The stance's rows at node x. `switching`: open contacts at their switch (the
+        node of a touchdown's gap_i = 0 before its impact, or of a lift-off), whose open
+        rows are left out there: gap_i >= 0 would repeat the touchdown's equality, and
+        at zero gap K gap_i - ||v_t||^2 >= 0 holds only with v_t = 0, a row whose gradient
+        in v vanishes there (its multiplier unbounded: IPOPT's convergence suffers)."""
+        open_ = [i for i in range(cls.n_contacts) if i not in closed and i not in switching]
         if open_:
             opti.subject_to(dyn.gaps(x)[open_] >= 0)
         for i in open_:
@@ -654,7 +662,7 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
             for opening in openings:
                 opti.subject_to(opening >= 0)
             current = j
-            contact_rows(x, u_k, stances[current].closed, lam)
+            contact_rows(x, u_k, stances[current].closed, lam, frozenset(lifting))
         elif k > 0:  # the stance holds on both sides of the control jump
             contact_rows(x, u_k, stances[current].closed)
         cuts = ([(grid[k], grid[k], None)]
@@ -662,6 +670,9 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                 + [(grid[k + 1], grid[k + 1], None)])
         for (ta, ga, _), (tb, gb, jb) in itertools.pairwise(cuts):
             closed = stances[current].closed
+            # the contacts touching down at this piece's end
+            landing = (frozenset() if jb is None
+                       else frozenset(stances[jb].closed) - frozenset(closed))
             n_steps = max(1 if tableau is not None else 2,
                           round(options.nodes * (gb - ga) / dt))
             h = (tb - ta) / n_steps
@@ -691,7 +702,8 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                         cost = cost + h * tableau.b[j] * running(y_of(z, t_stage), u_k)
                         last = i == n_steps - 1 and j == tableau.stages - 1
                         nodes.append((tb if last else t_stage, z))
-                        constrain_node(z, t_stage, u_k, closed, forces[j])
+                        constrain_node(z, t_stage, u_k, closed, forces[j],
+                                       landing if last else frozenset())
                     x = stages[-1]
                     continue
                 x_next = dyn.rk4(closed, options.steps_per_node)(x, u_k, h)
@@ -703,7 +715,8 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                                                  ga + (i + 1) * (gb - ga) / n_steps))
                 t_node = tb if i == n_steps - 1 else t0 + h
                 nodes.append((t_node, x))
-                constrain_node(x, t_node, u_k, closed)
+                constrain_node(x, t_node, u_k, closed, None,
+                               landing if i == n_steps - 1 else frozenset())
             if jb is None:
                 continue
             # a touchdown: the new contacts reach the ground, all closed ones end at rest
