@@ -306,3 +306,36 @@ def test_the_inverse_dynamics_rows_vanish_at_the_explicit_acceleration_and_force
             np.testing.assert_allclose(rows, 0.0, atol=1e-10)
             other = np.asarray(dyn.inverse(closed)(x, control, a + 0.01, lam)).ravel()
             assert np.max(np.abs(other)) > 1e-3
+
+
+@pytest.mark.slow
+def test_bolt_steps_once_per_foot_along_the_stances_of_a_saved_discovery():
+    """The stance re-solve on a robot of example-robot-data: bolt's walk (the shipped
+    `biped-walk` problem; the re-solve keeps neither its path rows nor its period) along
+    the stances of a saved time-freezing discovery of one step per foot (its relaxed plan,
+    residual 1e-4, at the 61 samples). The exact plan converges and passes the
+    multi-contact reference; each foot lifts off once and lands."""
+    import dataclasses
+    from pathlib import Path
+
+    from tfcontact.task import build_task, load_task, shipped_tasks
+
+    task = load_task(shipped_tasks()["biped-walk"])
+    problem = dataclasses.replace(build_task(task).problem, path=None)
+    cls = problem.system.cls
+    saved = np.load(Path(__file__).parent / "data" / "bolt_one_step_discovery.npz")
+    t, x, u = saved["t"], saved["x"], saved["u"]
+    gaps = np.asarray(cls.function("gaps")(x[:, :cls.n_q].T)).T
+    stances = stance_schedule(t, gaps, problem.horizon, problem.n_intervals)
+    # both down, the left foot lifts, both in flight, the right lands, both, the left
+    # lifts again: the discovery's sampled order
+    assert [s.closed for s in stances] == [(0, 1), (1,), (), (0,), (0, 1), (1,)]
+    gains = tuple(c.no_slip_gain for c in task.contacts)
+    plan = resolve_stances(problem, stances, StanceOptions(open_slip_gains=gains),
+                           guess=(t, x, u), verbose=False)
+    assert plan.solved, plan.ipopt_status
+    # 113 iterations measured; 562 while an open foot's rows stayed at its own touchdown
+    # node, where they force v_t = 0 with a vanishing gradient (benchmarks/legged.md)
+    assert plan.iterations < 300
+    assert plan.verification.passed, plan.verification.summary()
+    assert plan.x[-1, 0] == pytest.approx(0.5, abs=0.05)  # the base's x at T
