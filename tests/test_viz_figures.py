@@ -166,6 +166,9 @@ def test_contact_diagram_shows_the_hops_stance():
     spans = [(p.vertices[:, 0].min(), p.vertices[:, 0].max()) for p in bars.get_paths()]
     np.testing.assert_allclose(spans, [(0.0, 0.002), (0.4, 0.6), (1.0, 1.002)], atol=1e-9)
     assert [label.get_text() for label in ax.get_yticklabels()] == ["foot"]
+    fig = ax.figure  # its title within the figure (a longer one was cut at the right)
+    title = ax.title.get_window_extent(fig.canvas.get_renderer())
+    assert fig.bbox.x0 <= title.x0 and title.x1 <= fig.bbox.x1
 
 
 # ----------------------------------------------------------------------- path

@@ -294,8 +294,7 @@ def _contact_diagram(phys: PhysicalSamples, labels: Labels):
     if phys.t.size:
         ax.set_xlim(float(phys.t[0]), float(phys.t[-1]))
     ax.set_xlabel("t [s]")
-    ax.set_title(f"contact diagram: bars where a contact touches (gap <= "
-                 f"{1e3 * STANCE_GAP:g} mm)")
+    ax.set_title(f"contacts down (gap <= {1e3 * STANCE_GAP:g} mm)")
     return fig
 
 
