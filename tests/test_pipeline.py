@@ -4,6 +4,7 @@ its stages in turn, each given the outcome of the one before."""
 from __future__ import annotations
 
 import json
+import time
 from dataclasses import dataclass
 
 import pytest
@@ -30,8 +31,10 @@ class _Record(Stage):
     seen: list
     name: str = "record"
     tasks: tuple[str, ...] | None = None
+    pause: float = 0.0
 
     def run(self, given: StageInput) -> PlanOutcome:
+        time.sleep(self.pause)
         self.seen.append((given.plan, given.task, None if given.previous is None
                           else given.previous.status))
         return PlanOutcome(None, None, self.status, self.status == "converged", self.status)
@@ -40,13 +43,20 @@ class _Record(Stage):
 def test_stages_run_in_turn_and_the_last_outcome_is_written(tmp_path, monkeypatch):
     seen: list = []
     plan = Plan("two", "two stages", ("only",),
-                (_Record("first", seen), _Record("converged", seen)))
+                (_Record("first", seen, pause=0.2), _Record("converged", seen)))
     monkeypatch.setitem(plans.PLANS, "two", plan)
     report = plans.run_plan("two", tmp_path / "out", verbose=False)
     assert seen == [("two", "only", None), ("two", "only", "first")]
     assert (report.success, report.status) == (True, "converged")
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["status"] == "converged"
+    # where the time went: each stage, the collision check and the files
+    stages = summary["stages"]
+    assert [(s["stage"], s["status"]) for s in stages[:3]] == [
+        ("record", "first"), ("record", "converged"), ("collision check", "not checked")]
+    assert stages[3]["stage"].startswith("files")
+    assert stages[0]["seconds"] >= 0.2 > stages[1]["seconds"]
+    assert sum(s["seconds"] for s in stages) <= summary["wall_time"]
 
 
 def test_plans_are_data():

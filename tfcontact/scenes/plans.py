@@ -160,11 +160,18 @@ def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
     with folder.staging() as stage:
         outcome = None
         stages = plan.stages_for(task)
+        stage_times = []  # where a plan's time goes, in summary.json
         for step in stages:
             if verbose and len(stages) > 1:
                 print(f"plan {name} ({task}): stage {step.name}", flush=True)
+            began = time.perf_counter()
             outcome = step.run(StageInput(name, task, stage, verbose, attempts, outcome))
+            stage_times.append({"stage": step.name, "status": outcome.status,
+                                "seconds": time.perf_counter() - began})
+        began = time.perf_counter()
         collisions, collision_files = _collisions(outcome, stage)
+        stage_times.append({"stage": "collision check", "status": collisions.get(
+            "status", "not checked"), "seconds": time.perf_counter() - began})
         if collisions.get("passed") is False:
             # a physical, verified plan whose knee or base goes through the terrain (or
             # through the robot) is not a plan: the body and time are in the summary
@@ -172,7 +179,7 @@ def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
                 outcome, success=False, status=COLLISION,
                 summary=f"{outcome.summary}\ncollisions FAILED: {collisions['worst']}")
         files = _write_outcome(name, task, stage, start, outcome, collisions,
-                               collision_files)
+                               collision_files, stage_times)
     files = [folder.final_path(f, stage) for f in files]
     if verbose:
         print(f"wrote {len(files)} files to {folder.target}/:")
@@ -187,9 +194,11 @@ def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
 
 
 def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanOutcome,
-                   collisions: dict, collision_files: list[Path]) -> list[Path]:
+                   collisions: dict, collision_files: list[Path],
+                   stage_times: list[dict]) -> list[Path]:
     """Write the trajectory, figures, replay and summary.json of a solved (or failed) plan
-    into `out`; returns the paths written."""
+    into `out`; returns the paths written. `stage_times`: each stage's name, status and
+    seconds; the writing's own seconds are added."""
     from tfcontact.plan_format import save_trajectory
     from tfcontact.plan_format.resolved import save_resolved_plan
     from tfcontact.viz import plot_trajectory, replay
@@ -198,6 +207,7 @@ def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanO
     if outcome.chain is not None and outcome.chain.plan is not None:
         # the exact re-solve's nodes, re-verifiable from disk (`verify_polished`)
         files.append(save_resolved_plan(outcome.chain.plan, out / "plan.npz"))
+    began = time.perf_counter()
     if outcome.trajectory is not None:
         npz, sidecar = save_trajectory(out / "trajectory.npz", outcome.trajectory)
         figures = plot_trajectory(outcome.trajectory, out)
@@ -206,6 +216,9 @@ def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanO
     (out / "summary.json").write_text(json.dumps({
         "plan": name, "task": task, "status": outcome.status,
         "success": outcome.success, "wall_time": time.perf_counter() - start,
+        "stages": [*stage_times, {"stage": "files (trajectory, figures, replay)",
+                                  "status": "written",
+                                  "seconds": time.perf_counter() - began}],
         "task_checks": outcome.task, "summary": outcome.summary,
         "collisions": collisions}, indent=2))
     files.append(out / "summary.json")
