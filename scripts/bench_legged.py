@@ -4,6 +4,7 @@ goes, one plan at a time in one run (issue 30, benchmarks/legged.md).
     python scripts/bench_legged.py --pyramid    # quadruped-jump's first NLP: cone at eps_t
                                                 # 1e-7 and 1e-3, and the pyramid
     python scripts/bench_legged.py quadruped-jump --eps-t 1e-3 --nlps 0 --out benchmarks/legged.md
+    python scripts/bench_legged.py biped-walk --whole    # the whole plan, stage by stage
 
 Per task, friction model (`Task.friction_model`) and, for the cone, stick speed eps_t
 (`ContactEntry.eps_t`, set for every contact): DoF,
@@ -14,6 +15,11 @@ CasADi's function evaluations and the rest (IPOPT's own work, mostly MUMPS), the
 build, solve and verification times (the multi-contact exact-impact replay, no FESD
 fallback), the plan's status and its goals. A cut homotopy is reported as such and not
 verified: its iterate is no plan.
+
+`--whole` runs each named plan as `tfcontact plan NAME` does (every stage, its files
+written to a temporary folder) and reports its status, goals, the IPOPT iterations of
+the discovery and of the exact re-solve, each stage's seconds (summary.json's `stages`)
+and the process's peak resident memory.
 """
 
 from __future__ import annotations
@@ -87,6 +93,44 @@ def measure(name: str, eps_t: float | None, nlps: int, friction: str | None = No
             "verify [s]": timings["verify"], "status": status, "goals met": goals}
 
 
+WHOLE_COLUMNS = ("plan", "status", "goals met", "discovery iterations",
+                 "re-solve iterations", "discover [s]", "re-solve [s]", "collisions [s]",
+                 "files [s]", "total [s]", "peak memory [GB]")
+
+
+def measure_whole(name: str) -> dict:
+    """The whole plan `name`, run once as the command line runs it (module docstring)."""
+    import json
+    import resource
+    import tempfile
+
+    from tfcontact.scenes.plans import run_plan
+
+    with tempfile.TemporaryDirectory() as folder:
+        out = Path(folder) / "plan"
+        run_plan(name, out, verbose=True)
+        summary = json.loads((out / "summary.json").read_text())
+        sidecar = out / "trajectory.json"
+        solver = json.loads(sidecar.read_text()).get("solver", {}) if sidecar.exists() else {}
+    seconds = {s["stage"]: s["seconds"] for s in summary["stages"]}
+    discovery = solver.get("discovery", solver)
+    resolved = "discovery" in solver  # an exact re-solve's sidecar names its discovery
+    checks = summary.get("task_checks") or {}
+    return {"plan": name, "status": summary["status"],
+            "goals met": checks.get("passed", "-"),
+            "discovery iterations": discovery.get("iterations", "-"),
+            "re-solve iterations": solver.get("iterations", "-") if resolved else "-",
+            "discover [s]": seconds.get("discover", math.nan),
+            "re-solve [s]": next((v for k, v in seconds.items() if "re-solve" in k),
+                                 math.nan),
+            "collisions [s]": seconds.get("collision check", math.nan),
+            "files [s]": next((v for k, v in seconds.items() if k.startswith("files")),
+                              math.nan),
+            "total [s]": summary["wall_time"],
+            # ru_maxrss is in KiB on Linux: the process's peak so far
+            "peak memory [GB]": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
+
+
 def table(rows: list[dict]) -> str:
     return markdown_table(COLUMNS, rows)
 
@@ -101,8 +145,14 @@ def main(argv: list[str] | None = None) -> int:
                         help="also the inscribed pyramid (`friction_model = pyramid`)")
     parser.add_argument("--nlps", type=int, default=1,
                         help="NLPs of the homotopy to solve (0: all)")
+    parser.add_argument("--whole", action="store_true",
+                        help="run each plan whole, stage by stage (no variants)")
     parser.add_argument("--out", type=Path, default=None, help="write the table here")
     args = parser.parse_args(argv)
+    if args.whole:
+        rows = [measure_whole(name) for name in args.names]
+        report(markdown_table(WHOLE_COLUMNS, rows), "plan", args.out)
+        return 0
     rows = []
     for name in args.names:
         variants = [(eps_t, "cone") for eps_t in args.eps_t]

@@ -89,3 +89,34 @@ def test_linear_solver_bench_changes_only_the_linear_algebra(load_script):
     assert bench.with_solver(base, bench.SOLVERS["spral"]).nlp.linear_solver == "spral"
     assert bench.with_solver(base, bench.SOLVERS["mumps METIS"]).nlp.options[
         "mumps_pivot_order"] == 5
+
+
+def test_legged_bench_reports_a_whole_plan_stage_by_stage(load_script, monkeypatch):
+    """`--whole`: each stage's seconds from summary.json go to their columns (a plan of two
+    stages that only wait, without a trajectory to write)."""
+    import time
+    from dataclasses import dataclass
+
+    from tfcontact.scenes import plans
+    from tfcontact.scenes.pipeline import Plan, PlanOutcome, Stage, StageInput
+
+    @dataclass(frozen=True)
+    class Wait(Stage):
+        name: str
+        pause: float
+        tasks: tuple[str, ...] | None = None
+
+        def run(self, given: StageInput) -> PlanOutcome:
+            time.sleep(self.pause)
+            return PlanOutcome(None, None, "converged", True, self.name)
+
+    monkeypatch.setitem(plans.PLANS, "waits", Plan(
+        "waits", "two waits", ("only",), (Wait("discover", 0.3), Wait("stance re-solve", 0.1))))
+    bench = load_script("bench_legged")
+    row = bench.measure_whole("waits")
+    assert row["status"] == "converged"
+    assert row["discover [s]"] >= 0.3 and row["re-solve [s]"] >= 0.1
+    assert row["total [s]"] >= 0.4 and row["peak memory [GB]"] > 0
+    assert row["discovery iterations"] == "-" == row["re-solve iterations"]
+    lines = bench.markdown_table(bench.WHOLE_COLUMNS, [row]).splitlines()
+    assert lines[0].count("|") == len(bench.WHOLE_COLUMNS) + 1
