@@ -282,6 +282,15 @@ def schedule_of(result: ContactResult, options: StanceOptions | None = None
                            options)
 
 
+def spd_solve(matrix: ca.SX, rhs: ca.SX) -> ca.SX:
+    """matrix^-1 rhs for a symmetric positive definite SX matrix (a Delassus matrix) by its
+    symbolic LDL^T, which needs no pivoting there. With it and M(q)'s sparse LDL^T
+    (`solve_mass`) instead of CasADi's symbolic QR (`casadi.solve`), bolt's double-stance
+    right-hand side's Hessian took 39.6k instead of 116.6k instructions."""
+    d, lt, p = ca.ldl(matrix)
+    return ca.ldl_solve(rhs, d, lt, p)
+
+
 class StanceDynamics:
     """The hybrid system's CasADi functions in x = (q, v) and u, per stance (a tuple of
     closed contacts, all sticking): `rhs(S)`, the contact forces `force(S)` (per closed
@@ -297,7 +306,7 @@ class StanceDynamics:
         q, v, u = cls.q, cls.v, cls.u
         self._x = ca.vertcat(q, v)
         self._u = u
-        self._minv_f = ca.solve(cls.mass_matrix, cls.forces)
+        self._minv_f = cls.solve_mass(cls.forces)
         self.columns = []  # per contact: J_i = [n_i B_i] (frictionless: n_i)
         for c in cls.contacts:
             self.columns.append(ca.horzcat(c.normal, c.tangents) if c.has_friction
@@ -319,7 +328,7 @@ class StanceDynamics:
             vel_i = ca.mtimes(self.columns[i].T, v)
             stab.append(2 * self.alpha * vel_i[0] + self.alpha**2 * cls.contacts[i].gap)
             stab += [self.alpha * vel_i[j] for j in range(1, vel_i.shape[0])]
-        minv_j = ca.solve(cls.mass_matrix, jac)
+        minv_j = self.cls.solve_mass(jac)
         delassus = ca.mtimes(jac.T, minv_j)
         return jac, vel, drift, ca.vertcat(*stab), minv_j, delassus
 
@@ -334,9 +343,9 @@ class StanceDynamics:
                      "acc": acc, "force": None, "impact": None}
         else:
             jac, vel, drift, stab, minv_j, delassus = self._terms(closed)
-            lam = ca.solve(delassus, -(ca.mtimes(jac.T, self._minv_f) + drift + stab))
+            lam = spd_solve(delassus, -(ca.mtimes(jac.T, self._minv_f) + drift + stab))
             acc = self._minv_f + minv_j @ lam
-            impulse = -ca.solve(delassus, vel)
+            impulse = -spd_solve(delassus, vel)
             funcs = {"rhs": ca.Function(f"rhs_{name}", [x, u], [ca.vertcat(v, acc)]),
                      "acc": acc,
                      "force": ca.Function(f"force_{name}", [x, u], [lam]),
