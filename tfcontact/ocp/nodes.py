@@ -1,7 +1,7 @@
 """What the exact re-solves (`polish`: one contact; `stances`: several) share: a contact
 problem's rows and costs as functions of a node's state x = (q, v), its time and control,
-a guess read off a sampled trajectory, the collocation equations of an element, and an
-Opti solve that reports its progress and stops on Ctrl-C."""
+a guess read off a sampled trajectory, the collocation equations of an element, the
+Delassus solves, and an Opti solve that reports its progress and stops on Ctrl-C."""
 
 from __future__ import annotations
 
@@ -116,3 +116,12 @@ def collocation_rows(tableau, x, stages, slopes, h) -> list:
     accelerations a as variables of the inverse-dynamics form)."""
     return [z - x - h * sum(tableau.A[j, m] * slopes[m] for m in range(len(stages)))
             for j, z in enumerate(stages)]
+
+
+def spd_solve(matrix: ca.SX, rhs: ca.SX) -> ca.SX:
+    """matrix^-1 rhs for a symmetric positive definite SX matrix (a Delassus matrix) by its
+    symbolic LDL^T, which needs no pivoting there. With it and M(q)'s sparse LDL^T
+    (`solve_mass`) instead of CasADi's symbolic QR (`casadi.solve`), bolt's double-stance
+    right-hand side's Hessian took 39.6k instead of 116.6k instructions (benchmarks/legged.md)."""
+    d, lt, p = ca.ldl(matrix)
+    return ca.ldl_solve(rhs, d, lt, p)

@@ -58,6 +58,7 @@ from tfcontact.ocp.nodes import (
     interpolate,
     report_progress,
     solve_guarded,
+    spd_solve,
 )
 from tfcontact.verify import (
     EvaluationBudget,
@@ -280,15 +281,6 @@ def schedule_of(result: ContactResult, options: StanceOptions | None = None
     gaps = np.asarray(cls.function("gaps")(x[:, :cls.n_q].T)).T
     return stance_schedule(phys.t, gaps, result.problem.horizon, result.problem.n_intervals,
                            options)
-
-
-def spd_solve(matrix: ca.SX, rhs: ca.SX) -> ca.SX:
-    """matrix^-1 rhs for a symmetric positive definite SX matrix (a Delassus matrix) by its
-    symbolic LDL^T, which needs no pivoting there. With it and M(q)'s sparse LDL^T
-    (`solve_mass`) instead of CasADi's symbolic QR (`casadi.solve`), bolt's double-stance
-    right-hand side's Hessian took 39.6k instead of 116.6k instructions."""
-    d, lt, p = ca.ldl(matrix)
-    return ca.ldl_solve(rhs, d, lt, p)
 
 
 class StanceDynamics:
