@@ -988,3 +988,28 @@ def test_a_two_contact_task_is_resolved_exactly_along_its_stances(tmp_path):
     assert np.all(trajectory.force[:, :, 2] > 0)
     assert np.all(np.abs(trajectory.force[:, :, 0]) <= 0.8 * trajectory.force[:, :, 2])
     np.testing.assert_allclose(trajectory.force[:, :, 1], 0.0)
+
+
+def test_a_task_sets_the_stance_resolves_elements(tmp_path):
+    """`resolve_elements`: the Radau elements per interval of the stance re-solve that
+    `tfcontact plan` runs; refused where no stance re-solve runs."""
+    import dataclasses
+
+    from tfcontact.ocp.stances import StanceOptions
+    from tfcontact.scenes.plans import StanceResolve, task_plan
+
+    shipped = shipped_tasks()["biped-walk"]
+    path = tmp_path / "walk.toml"
+    path.write_text(shipped.read_text().replace("exact_resolve = true\n", ""
+                                                "exact_resolve = true\nresolve_elements = 5\n"))
+    stages = [task_plan(p).stages[-1] for p in (shipped, path)]
+    assert all(isinstance(stage, StanceResolve) for stage in stages)
+    task = load_task(shipped)
+    assert stages[0].options.nodes == (task.resolve_elements or StanceOptions().nodes)
+    assert stages[1].options.nodes == 5
+    with pytest.raises(InvalidInput, match="resolve_elements"):
+        dataclasses.replace(task, resolve_elements=0)
+    with pytest.raises(InvalidInput, match="`resolve_elements` sets the stance re-solve"):
+        dataclasses.replace(task, exact_resolve=False, resolve_elements=2)
+    with pytest.raises(InvalidInput, match="`resolve_elements` sets the stance re-solve"):
+        dataclasses.replace(task, contacts=task.contacts[:1], resolve_elements=2)

@@ -70,7 +70,7 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "actuated", "effort", "bounds", "terrain", "waypoints", "goals", "costs", "solver",
         "guess", "a_n", "gap_scale", "exact_resolve",
         "complementarity_tolerance", "finite_elements", "friction_model", "periodic",
-        "period", "period_from", "barrier"}
+        "period", "period_from", "barrier", "resolve_elements"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "eps_t", "reach"}
@@ -154,6 +154,7 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         solver=top.get("solver", "default"), guess=top.get("guess", "start"),
         a_n=top.get("a_n", 100.0), gap_scale=top.get("gap_scale", 30.0),
         exact_resolve=top.get("exact_resolve", False),
+        resolve_elements=top.get("resolve_elements"),
         complementarity_tolerance=top.get("complementarity_tolerance"),
         finite_elements=top.get("finite_elements"),
         friction_model=top.get("friction_model", "cone"),

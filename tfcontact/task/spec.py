@@ -400,9 +400,14 @@ class Task:
             contact along its stick, slip and flight phases (`tfcontact.ocp.polish`);
             several contacts along the stances found, each closed contact sticking
             (`tfcontact.ocp.stances`, verified with the multi-contact reference).
-            Measured on hopper-step's terrain: not usable yet (its expanded NLP passed
-            6 GB; unexpanded, 0.47 s per iteration, unconverged after 1000); on bolt's
-            walk neither (benchmarks/legged.md).
+            Measured: bolt's walk converges and is verified this way (`biped-walk`); on
+            hopper-step's terrain the one-contact re-solve is not usable yet (its
+            expanded NLP passed 6 GB; unexpanded, 0.47 s per iteration, unconverged
+            after 1000; benchmarks/legged.md).
+        resolve_elements: Radau IIA elements per control interval of the stance re-solve
+            (several contacts; default `StanceOptions.nodes`, 3). Fewer elements make a
+            cheaper NLP and larger local defects (order 5: about (3/2)^5 = 7.6 times
+            larger with 2 than with 3), which the verification checks.
         description: a line for `tfcontact plan --list`.
     """
 
@@ -431,6 +436,7 @@ class Task:
     friction_model: str = "cone"
     barrier: str | None = None
     exact_resolve: bool = False
+    resolve_elements: int | None = None
     description: str = ""
 
     def __post_init__(self) -> None:
@@ -517,5 +523,11 @@ class Task:
         if not isinstance(self.exact_resolve, bool):
             raise InvalidInput(f"`exact_resolve` must be true or false, got "
                                f"{self.exact_resolve!r}")
+        if self.resolve_elements is not None:
+            positive_int(self.resolve_elements, "resolve_elements")
+            if not self.exact_resolve or len(self.contacts) < 2:
+                raise InvalidInput(
+                    "`resolve_elements` sets the stance re-solve, which runs with "
+                    "`exact_resolve = true` and several contacts; remove it or set both")
         if not isinstance(self.description, str):
             raise InvalidInput("`description` must be a string")
