@@ -963,6 +963,12 @@ def test_a_two_contact_task_is_resolved_exactly_along_its_stances(tmp_path):
     assert "stances: converged" in summary["summary"], summary["summary"]
     verification = load_trajectory(tmp_path / "out" / "trajectory.npz").verification
     assert verification["passed"] and verification["end_state_deviation"] < 1e-6
+    # the sidecar names the method that ran (the default: Radau, the explicit form) and
+    # summary.json where the time went
+    solver = load_trajectory(tmp_path / "out" / "trajectory.npz").solver
+    assert solver["method"] == ("exact re-solve along the stances (tfcontact.ocp.stances): "
+                                "Radau IIA collocation on the fixed control grid")
+    assert [s["stage"] for s in summary["stages"][:2]] == ["discover", "stance re-solve"]
     # both feet down throughout: the world forces' impulse is the robot's weight's plus its
     # change of vertical momentum (Pinocchio's centre-of-mass velocity), the forces
     # pointing up and inside the cone
