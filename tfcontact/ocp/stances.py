@@ -11,7 +11,8 @@ system's dynamics, contact-accurate by construction:
   J_S^T a + (dJ_S/dt)^T v = -(stabilisation) (index-reduced, Baumgarte: the normal rows
   2 alpha v_n + alpha^2 gap, the tangential ones alpha v_t); at every node
   lambda_n,i >= 0 and the cone ||lambda_t,i|| <= c mu_i lambda_n,i (c: `cone_margin`), the
-  open contacts' gaps >= 0;
+  open contacts' gaps >= 0 (not at a contact's own touchdown or lift-off node, where the
+  rows would be degenerate: `StanceOptions.open_slip_gains`);
 * a touchdown of contacts D (a stance S -> S + D) at a free time inside the control
   interval its guess lies in: gap_i = 0 for i in D and the inelastic impact of all the
   closed contacts S + D ending in stick, J^T v+ = 0 with the impulse
