@@ -19,7 +19,8 @@ verified: its iterate is no plan.
 `--whole` runs each named plan as `tfcontact plan NAME` does (every stage, its files
 written to a temporary folder) and reports its status, goals, the IPOPT iterations of
 the discovery and of the exact re-solve, each stage's seconds (summary.json's `stages`)
-and the process's peak resident memory.
+and the process's peak resident memory (the peak so far: run one plan per process for
+each plan's own).
 """
 
 from __future__ import annotations
@@ -113,8 +114,8 @@ def measure_whole(name: str) -> dict:
         sidecar = out / "trajectory.json"
         solver = json.loads(sidecar.read_text()).get("solver", {}) if sidecar.exists() else {}
     seconds = {s["stage"]: s["seconds"] for s in summary["stages"]}
-    discovery = solver.get("discovery", solver)
     resolved = "discovery" in solver  # an exact re-solve's sidecar names its discovery
+    discovery = solver["discovery"] if resolved else solver
     checks = summary.get("task_checks") or {}
     return {"plan": name, "status": summary["status"],
             "goals met": checks.get("passed", "-"),

@@ -1011,7 +1011,7 @@ def test_a_task_sets_the_stance_resolves_elements(tmp_path):
     stages = [task_plan(p).stages[-1] for p in (shipped, path)]
     assert all(isinstance(stage, StanceResolve) for stage in stages)
     task = load_task(shipped)
-    assert stages[0].options.nodes == (task.resolve_elements or StanceOptions().nodes)
+    assert task.resolve_elements is None and stages[0].options.nodes == StanceOptions().nodes
     assert stages[1].options.nodes == 5
     with pytest.raises(InvalidInput, match="resolve_elements"):
         dataclasses.replace(task, resolve_elements=0)

@@ -321,7 +321,7 @@ class StanceDynamics:
             vel_i = ca.mtimes(self.columns[i].T, v)
             stab.append(2 * self.alpha * vel_i[0] + self.alpha**2 * cls.contacts[i].gap)
             stab += [self.alpha * vel_i[j] for j in range(1, vel_i.shape[0])]
-        minv_j = self.cls.solve_mass(jac)
+        minv_j = cls.solve_mass(jac)
         delassus = ca.mtimes(jac.T, minv_j)
         return jac, vel, drift, ca.vertcat(*stab), minv_j, delassus
 

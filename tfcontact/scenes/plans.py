@@ -115,9 +115,9 @@ def task_plan(source: str | Path) -> Plan:
     # where the task's path rows (its no-slip rows: `build_task`) hold by construction
     # (an open no-slip contact keeps v_t^2 <= K gap: it does not skim the ground)
     gains = tuple(c.no_slip_gain if c.no_slip else None for c in data.contacts)
-    nodes = {} if data.resolve_elements is None else {"nodes": data.resolve_elements}
     resolve = (ExactResolve() if len(data.contacts) == 1 else StanceResolve(
-        StanceOptions(open_slip_gains=gains, **nodes), keep_path=False))
+        StanceOptions(open_slip_gains=gains,
+                      nodes=data.resolve_elements or StanceOptions.nodes), keep_path=False))
     stages = (Discover(build), resolve) if data.exact_resolve else (Discover(build),)
     return Plan(name=data.name, summary=data.description or f"task file {path}",
                 tasks=("task",), stages=stages)

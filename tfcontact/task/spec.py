@@ -524,7 +524,8 @@ class Task:
             raise InvalidInput(f"`exact_resolve` must be true or false, got "
                                f"{self.exact_resolve!r}")
         if self.resolve_elements is not None:
-            positive_int(self.resolve_elements, "resolve_elements")
+            object.__setattr__(self, "resolve_elements",
+                               positive_int(self.resolve_elements, "resolve_elements"))
             if not self.exact_resolve or len(self.contacts) < 2:
                 raise InvalidInput(
                     "`resolve_elements` sets the stance re-solve, which runs with "
