@@ -20,7 +20,7 @@ from tfcontact.scenes.pipeline import (
     StageInput,
 )
 from tfcontact.scenes.plans import PLANS
-from tfcontact.sweep import SweepSpec
+from tfcontact.sweep import SweepSpec, sweep_target
 
 
 @dataclass(frozen=True)
@@ -95,9 +95,15 @@ def test_attempts_only_for_plans_with_a_discovery(tmp_path, monkeypatch):
         plans.run_plan("own", tmp_path / "out", attempts=2, verbose=False)
 
 
-def test_a_sweep_refuses_stages_it_would_not_run():
-    with pytest.raises(InvalidInput, match="has stages after its discovery \\(exact re-solve\\)"):
-        SweepSpec("hopper-exact")
+def test_a_sweep_runs_later_stages_but_refuses_those_with_problems_of_their_own():
+    """A case runs a plan's stages after its discovery on the perturbed start's outcome;
+    a stage that builds its own problem would ignore that start."""
+    assert [s.name for s in sweep_target("hopper-exact").later_stages("bench")] == [
+        "exact re-solve"]
+    assert sweep_target("hopper").later_stages("short") == ()
+    with pytest.raises(InvalidInput, match="stages that solve problems of their own "
+                                           "\\(exact re-solve of TF-9's task\\)"):
+        SweepSpec("monoped")
 
 
 @pytest.mark.slow

@@ -5,6 +5,7 @@ case): its case files, resume, interrupt, a case that raises, the table and the 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import re
 
@@ -30,6 +31,7 @@ from tfcontact.sweep import (
     SweepSpec,
     add_sweep_parser,
     run_sweep,
+    sweep_target,
 )
 
 # ---------------------------------------------------------------- the spec, fast
@@ -38,9 +40,9 @@ from tfcontact.sweep import (
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"plan": "hopper", "starts": 0}, r"`starts` must be a positive integer, got 0"),
     ({"plan": "hopper", "starts": 2.5}, r"`starts` must be a positive integer, got 2.5"),
-    ({"plan": "walker"}, r"unknown plan `walker`; sweepable plans: hopper, particle"),
-    ({"plan": "monoped"}, r"plan `monoped` has stages after its discovery \(exact re-solve "
-                          r"of the reduced hop, exact re-solve of TF-9's task\)"),
+    ({"plan": "walker"}, r"unknown plan `walker`; sweepable plans: hopper, hopper-exact, particle"),
+    ({"plan": "monoped"}, r"plan `monoped` has stages that solve problems of their own "
+                          r"\(exact re-solve of TF-9's task\), not the perturbed start's"),
     ({"plan": "hopper", "task": "sprint"},
      r"plan `hopper` has no task `sprint`; tasks: short, long, bench"),
     ({"plan": "hopper", "seed": -1}, r"`seed` must be a non-negative integer, got -1"),
@@ -189,6 +191,45 @@ def test_failure_reasons_name_what_failed():
     reason, kind = failure_reason(NS(ocp=NS(success=True), verification=passed,
                                      task=TaskReport((missed,))))
     assert kind == "task: goal_missed" and reason == missed.line().strip()
+
+
+def test_a_case_after_later_stages_names_the_stage_that_failed():
+    """A discovery that converged and a stance re-solve that did not: the case fails with
+    the re-solve's status and line; a plan through the terrain fails at the collision
+    check (stand-ins for `PlanOutcome`: only the fields read)."""
+    from types import SimpleNamespace as NS
+
+    found = CaseResult.from_error(SweepCase((), 0, 0), "walk", "task", RuntimeError("x"))
+    found = dataclasses.replace(found, status="converged", success=True,
+                                first_attempt_success=True, iterations=800,
+                                failure=None, failure_kind=None)
+    stages = [{"stage": "discover", "status": "converged", "seconds": 1.0},
+              {"stage": "stance re-solve", "status": "nlp_failed", "iterations": 3000,
+               "seconds": 2.0},
+              {"stage": "collision check", "status": "clear", "seconds": 0.1}]
+    trajectory = NS(solver={"objective": 3.2}, verification={"end_state_deviation": 0.7})
+    outcome = NS(trajectory=trajectory, status="nlp_failed", success=False, task={},
+                 summary="discovery: converged\nstances: nlp_failed, Maximum_Iterations\n"
+                         "verification PASSED (multi-contact): ...\ntask: all goals met")
+    failed = found.after_stages(outcome, stages)
+    assert (failed.status, failed.success, failed.first_attempt_success) == (
+        "nlp_failed", False, False)
+    assert failed.failure_kind == "stance re-solve: nlp_failed"
+    assert failed.failure == "task: all goals met"  # no line says FAILED: the last one
+    assert (failed.iterations, failed.objective, failed.end_state_deviation) == (3800, 3.2, 0.7)
+    assert failed.verification == "verification PASSED (multi-contact): ..."
+    stages[1]["status"], stages[2]["status"] = "converged", "penetration"
+    through = NS(trajectory=trajectory, status="collision", success=False, task={},
+                 summary="stances: converged\ncollisions FAILED: FL_LOWER_LEG 3 mm in the "
+                         "terrain at 0.4 s\ntask: all goals met")
+    failed = found.after_stages(through, stages)
+    assert failed.failure_kind == "collision check: collision"
+    assert failed.failure.startswith("collisions FAILED: FL_LOWER_LEG")
+    passed = found.after_stages(NS(trajectory=trajectory, status="converged", success=True,
+                                   task={}, summary="task: all goals met"),
+                                [{**s, "status": "converged"} for s in stages[:2]])
+    assert (passed.success, passed.first_attempt_success, passed.failure,
+            passed.failure_kind) == (True, True, None, None)
 
 
 # ---------------------------------------------------------------- perturbed starts
@@ -342,9 +383,44 @@ def test_a_case_that_raises_is_recorded_and_solved_again(tmp_path, monkeypatch):
     assert run_sweep(spec, tmp_path, n_workers=1, progress=False).solved == 1
 
 
+@pytest.mark.slow
+def test_a_case_runs_the_plans_later_stages_from_its_perturbed_start(tmp_path, monkeypatch):
+    """A task file with `exact_resolve`: a case's discovery from its perturbed start,
+    then the stance re-solve of that discovery's problem (the same start) and the
+    collision check, as `tfcontact plan` runs them; the record is the whole plan's."""
+    from strider import write_strider
+
+    from tfcontact.scenes import pipeline
+    from tfcontact.sweep.run import solve_case
+
+    solved = []
+    resolve = pipeline.resolve_stances
+
+    def recording(problem, *args, **kwargs):
+        solved.append((problem.q0.copy(), resolve(problem, *args, **kwargs)))
+        return solved[-1][1]
+
+    monkeypatch.setattr(pipeline, "resolve_stances", recording)
+    target = sweep_target(str(write_strider(tmp_path)))
+    record = solve_case(target, "task", SweepCase((), 0, 3), threads=1)
+    assert [s["stage"] for s in record.extra["stages"]] == [
+        "discover", "stance re-solve", "collision check"]
+    ((q0, plan),) = solved
+    assert max(abs(v) for v in record.offsets.values()) > 1e-3  # the start moved
+    np.testing.assert_array_equal(q0, record.q0)
+    assert record.objective == plan.cost
+    discovery = sum(a["iterations"] for a in record.extra["attempts"])
+    assert record.iterations == discovery + plan.iterations > discovery
+    assert record.extra["stages"][1]["iterations"] == plan.iterations
+    assert record.success == plan.success
+    assert record.status == "converged", record.failure
+    assert record.extra["stages"][2]["status"] == "clear"
+    assert CaseResult.from_dict(json.loads(json.dumps(record.to_dict()))) == record
+
+
 @pytest.mark.parametrize(("argv", "message"), [
     (["hopper", "--starts", "0"], "`starts` must be a positive integer, got 0"),
-    (["monoped"], "plan `monoped` has stages after its discovery"),
+    (["monoped"], "plan `monoped` has stages that solve problems of their own"),
     (["hopper", "--friction", "-1"], "`friction` values must be finite and >= 0"),
     (["hopper", "--workers", "0"], "`n_workers` must be a positive integer, got 0"),
 ])

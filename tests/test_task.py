@@ -8,6 +8,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
+from strider import write_strider
 
 from tfcontact.errors import InvalidInput
 from tfcontact.task import (
@@ -879,70 +880,6 @@ def test_solo12s_leg_hops_verified():
     assert result.success, result.summary()
 
 
-# A robot of the test's own with two legs: a 1 kg body on an x-z base, each leg a hip
-# (revolute about y) and a prismatic shin (0.05 kg each link), a toe at its end.
-STRIDER_URDF = """<?xml version="1.0"?>
-<robot name="strider">
-  <link name="body">
-    <inertial><mass value="1.0"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0"
-      iyz="0"/></inertial>
-    <collision><geometry><box size="0.3 0.1 0.05"/></geometry></collision>
-  </link>
-""" + "".join(f"""  <link name="hip_link{i}">
-    <inertial><mass value="0.05"/><inertia ixx="1e-4" iyy="1e-4" izz="1e-4" ixy="0" ixz="0"
-      iyz="0"/></inertial>
-  </link>
-  <joint name="hip{i}" type="revolute">
-    <parent link="body"/><child link="hip_link{i}"/><origin xyz="{x} 0 0"/>
-    <axis xyz="0 1 0"/><limit lower="-1.0" upper="1.0" effort="5" velocity="20"/>
-  </joint>
-  <link name="shin{i}">
-    <inertial><mass value="0.05"/><inertia ixx="1e-4" iyy="1e-4" izz="1e-4" ixy="0" ixz="0"
-      iyz="0"/></inertial>
-  </link>
-  <joint name="leg{i}" type="prismatic">
-    <parent link="hip_link{i}"/><child link="shin{i}"/><axis xyz="0 0 -1"/>
-    <limit lower="0.1" upper="0.4" effort="30" velocity="20"/>
-  </joint>
-  <link name="toe{i}"/>
-  <joint name="toe{i}_joint" type="fixed"><parent link="shin{i}"/><child link="toe{i}"/></joint>
-""" for i, x in ((0, 0.1), (1, -0.1))) + "</robot>\n"
-
-STRIDER_TASK = """
-name = "strider-shift"
-horizon = 0.3
-n_intervals = 6
-exact_resolve = true
-[robot]
-source = "strider.urdf"
-base = "planar_xz"
-[[contacts]]
-frame = "toe0"
-radius = 0.02
-friction = 0.8
-no_slip = true
-[[contacts]]
-frame = "toe1"
-radius = 0.02
-friction = 0.8
-no_slip = true
-[start]
-z = 0.27
-leg0 = 0.25
-leg1 = 0.25
-[[waypoints]]
-t = 0.3
-x = 0.02
-z = 0.28
-[goals]
-end = { x = 0.02 }
-[costs]
-tracking = { x = 50, z = 500 }
-terminal = { x = 300, z = 300 }
-control = 0.001
-"""
-
-
 def test_a_two_contact_task_is_resolved_exactly_along_its_stances(tmp_path):
     """`exact_resolve` with two contacts: the discovery's relaxed plan is re-solved along
     its stances with the exact dynamics (`tfcontact.ocp.stances`), and the multi-contact
@@ -952,9 +889,7 @@ def test_a_two_contact_task_is_resolved_exactly_along_its_stances(tmp_path):
     from tfcontact.plan_format import load_trajectory
     from tfcontact.scenes.plans import run_plan
 
-    (tmp_path / "strider.urdf").write_text(STRIDER_URDF)
-    path = tmp_path / "strider.toml"
-    path.write_text(STRIDER_TASK)
+    path = write_strider(tmp_path)
     report = run_plan(path, tmp_path / "out", attempts=1, verbose=False)
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert report.status == "converged", summary["summary"]

@@ -11,7 +11,8 @@ import importlib
 from typing import Any
 
 _PLANS = "tfcontact.scenes.plans"
-__all__ = ["PLANS", "Plan", "PlanReport", "PlanSetup", "plan_named", "run_plan", "task_plan"]
+__all__ = ["PLANS", "Plan", "PlanReport", "PlanSetup", "check_collisions", "plan_named", "run_plan",
+           "task_plan"]
 
 
 def __getattr__(name: str) -> Any:

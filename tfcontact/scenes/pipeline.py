@@ -92,6 +92,12 @@ class Stage(ABC):
     def run(self, given: StageInput) -> PlanOutcome:
         """The stage's outcome (the last stage's is written)."""
 
+    @property
+    def own_setup(self) -> bool:
+        """Whether the stage solves a problem of its own rather than the stage before's
+        (a sweep, which perturbs the discovery's start, cannot run such a stage)."""
+        return False
+
 
 @dataclass(frozen=True)
 class Discover(Stage):
@@ -104,7 +110,6 @@ class Discover(Stage):
 
     def run(self, given: StageInput) -> PlanOutcome:
         from tfcontact.ocp.contact import solve_contact
-        from tfcontact.plan_format import terrain_directions, trajectory_from_result
 
         setup = self.build(given.task)
         robot, problem, options = setup.robot, setup.problem, setup.options
@@ -114,14 +119,21 @@ class Discover(Stage):
             print(f"plan {given.plan} ({given.task}): {robot.model.name}, nq = {robot.nq}, "
                   f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
         result = solve_contact(problem, options, verbose=given.verbose)
-        directions = (None if setup.terrain is None
-                      else terrain_directions(robot, setup.terrain))
-        trajectory = trajectory_from_result(result, robot.spec, setup.scene,
-                                            directions=directions,
-                                            task=result.task.to_dict())
-        return PlanOutcome(trajectory, robot, result.status, result.success,
-                           result.summary(), task=result.task.to_dict(), result=result,
-                           setup=setup)
+        return discovery_outcome(result, setup)
+
+
+def discovery_outcome(result: ContactResult, setup: PlanSetup) -> PlanOutcome:
+    """What `Discover` returns for its `ContactResult` on `setup`'s problem (also what a
+    sweep hands to a plan's later stages after solving a perturbed start)."""
+    from tfcontact.plan_format import terrain_directions, trajectory_from_result
+
+    directions = (None if setup.terrain is None
+                  else terrain_directions(setup.robot, setup.terrain))
+    trajectory = trajectory_from_result(result, setup.robot.spec, setup.scene,
+                                        directions=directions, task=result.task.to_dict())
+    return PlanOutcome(trajectory, setup.robot, result.status, result.success,
+                       result.summary(), task=result.task.to_dict(), result=result,
+                       setup=setup)
 
 
 @dataclass(frozen=True)
@@ -225,6 +237,10 @@ class ExactResolve(Stage):
     setup: Callable[[str], PlanSetup] | None = None
     name: str = "exact re-solve"
     tasks: tuple[str, ...] | None = None
+
+    @property
+    def own_setup(self) -> bool:
+        return self.setup is not None
 
     def run(self, given: StageInput) -> PlanOutcome:
         found = given.previous

@@ -14,7 +14,7 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from tfcontact.errors import InvalidInput, positive_int
 from tfcontact.ocp.stances import StanceOptions
@@ -145,6 +145,7 @@ def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
     interrupt (`tfcontact.errors.Interrupted`) leaves `out_dir` as it was.
     """
     from tfcontact.scenes.output import OutputFolder
+    from tfcontact.viz.collision_figure import save_collision_figure
 
     plan = plan_named(name)
     name = plan.name
@@ -170,15 +171,11 @@ def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
             stage_times.append({"stage": step.name, "status": outcome.status,
                                 "seconds": time.perf_counter() - began})
         began = time.perf_counter()
-        collisions, collision_files = _collisions(outcome, stage)
+        outcome, collisions, report = check_collisions(outcome)
+        collision_files = ([] if report is None
+                           else [save_collision_figure(report, stage / "collisions.png")])
         stage_times.append({"stage": "collision check", "status": collisions.get(
             "status", "not checked"), "seconds": time.perf_counter() - began})
-        if collisions.get("passed") is False:
-            # a physical, verified plan whose knee or base goes through the terrain (or
-            # through the robot) is not a plan: the body and time are in the summary
-            outcome = dataclasses.replace(
-                outcome, success=False, status=COLLISION,
-                summary=f"{outcome.summary}\ncollisions FAILED: {collisions['worst']}")
         files = _write_outcome(name, task, stage, start, outcome, collisions,
                                collision_files, stage_times)
     files = [folder.final_path(f, stage) for f in files]
@@ -226,16 +223,26 @@ def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanO
     return [Path(f) for f in files]
 
 
-def _collisions(outcome: PlanOutcome, out: Path) -> tuple[dict, list[Path]]:
-    """The URDF's full collision model along the plan against its scene's terrain
-    (`tfcontact.viz.collision_figure.trajectory_collisions`): reported in summary.json and
-    `collisions.png`; a body through the terrain or the robot fails the plan."""
-    from tfcontact.viz.collision_figure import save_collision_figure, trajectory_collisions
+def check_collisions(outcome: PlanOutcome) -> tuple[PlanOutcome, dict, Any]:
+    """The URDF's full collision model along the outcome's plan against its scene's
+    terrain (`tfcontact.viz.collision_figure.trajectory_collisions`).
+
+    Returns:
+        The outcome (failed with status "collision" when a body goes through the terrain
+        or the robot: a physical, verified plan whose knee or base does is not a plan, and
+        the body and time are added to its summary), the report as a dict for
+        summary.json, and the `CollisionReport` (None when nothing was checked)."""
+    from tfcontact.viz.collision_figure import trajectory_collisions
 
     if outcome.trajectory is None:
-        return {"checked": False, "reason": "no trajectory"}, []
+        return outcome, {"checked": False, "reason": "no trajectory"}, None
     try:
         report = trajectory_collisions(outcome.trajectory, robot=outcome.robot)
     except InvalidInput as err:  # a scene terrain without an obstacle form
-        return {"checked": False, "reason": str(err)}, []
-    return report.to_dict(), [save_collision_figure(report, out / "collisions.png")]
+        return outcome, {"checked": False, "reason": str(err)}, None
+    collisions = report.to_dict()
+    if collisions.get("passed") is False:
+        outcome = dataclasses.replace(
+            outcome, success=False, status=COLLISION,
+            summary=f"{outcome.summary}\ncollisions FAILED: {collisions['worst']}")
+    return outcome, collisions, report

@@ -29,8 +29,9 @@ def add_sweep_parser(subparsers: Any) -> argparse.ArgumentParser:
                     "every point of the parameter grid, as Dask tasks; each case is saved as "
                     "OUT/cases/<case>.json as it finishes (a rerun skips them), then "
                     "OUT/table.md and OUT/chart.png are written.")
-    parser.add_argument("plan", help="the plan: hopper, particle (TF-3), or another plan of "
-                                     "`tfcontact plan --list` with a single contact problem")
+    parser.add_argument("plan", help="the plan: hopper, particle (TF-3), another plan of "
+                                     "`tfcontact plan --list` that starts with a discovery "
+                                     "(its later stages run too), or a task file")
     parser.add_argument("--task", default=None,
                         help="the plan's task (default its first; hopper: short, long, "
                              "bench; particle: tf3, reduced)")

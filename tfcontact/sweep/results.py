@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -19,6 +20,12 @@ CASE_FORMAT = 1
 
 ERROR = "error"
 """The status of a case whose solve raised (the exception's type and message in `failure`)."""
+
+
+def _failed_stage(stages: list[dict]) -> str:
+    """The first stage that did not pass: not converged, or a collision found."""
+    return next((s["stage"] for s in stages if s["status"] not in ("converged", "clear")),
+                stages[-1]["stage"])
 
 
 class CaseFileError(TfcontactError):
@@ -115,6 +122,33 @@ class CaseResult:
                    "options": _options_record(result.options),
                    "task": result.task.to_dict()},
         )
+
+    def after_stages(self, outcome: Any, stages: list[dict]) -> CaseResult:
+        """This discovery's record with the outcome of the plan's later stages (a
+        `PlanOutcome`, collisions checked): its status, success, cost and end-state
+        deviation; the iterations add up; `extra["stages"]` has each stage's name, status,
+        iterations and seconds (the discovery's figures stay in `attempts`)."""
+        trajectory = outcome.trajectory
+        solver = {} if trajectory is None else trajectory.solver
+        verification = {} if trajectory is None else trajectory.verification
+        lines = [line.strip() for line in (outcome.summary or "").splitlines() if line.strip()]
+        success = bool(outcome.success)
+        failure = kind = None
+        if not success:
+            failing = [line for line in lines if any(
+                word in line for word in ("FAILED", "not started", "missed"))]
+            failure = (failing or lines or [outcome.status])[-1]
+            kind = f"{_failed_stage(stages)}: {outcome.status}"
+        return dataclasses.replace(
+            self, status=outcome.status, success=success,
+            first_attempt_success=self.first_attempt_success and success,
+            iterations=self.iterations + sum(int(s.get("iterations", 0)) for s in stages[1:]),
+            objective=float(solver.get("objective", math.nan)),
+            end_state_deviation=float(verification.get("end_state_deviation", math.nan)),
+            failure=failure, failure_kind=kind,
+            verification=next((line for line in lines if line.startswith("verification")),
+                              ""),
+            extra={**self.extra, "stages": stages, "task": outcome.task})
 
     @classmethod
     def from_error(cls, case: SweepCase, plan: str, task: str, error: BaseException,

@@ -34,7 +34,8 @@ _SAME = ("plan", "task", "seed", "threads_per_case", "perturbation", "target")
 
 def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) -> CaseResult:
     """Solve one case (on a worker): build the plan with the case's grid point, draw its
-    perturbed start, solve and verify it with `solve_contact`."""
+    perturbed start, solve and verify it with `solve_contact`, then run the plan's later
+    stages on that outcome and check its collisions as `tfcontact plan` does."""
     from tfcontact.ocp.contact import solve_contact
 
     started, cpu = time.perf_counter(), time.process_time()
@@ -50,9 +51,45 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
     start = target.perturbation(setup).sample(setup.problem, rng)
     problem = target.from_start(setup, task, problem_params, start)
     result = solve_contact(problem, options, verbose=False)
-    return CaseResult.from_contact(case, target.name, task, start, result,
-                                   time.perf_counter() - started,
-                                   cpu_time=time.process_time() - cpu)
+    stages = target.later_stages(task)
+    if not stages:
+        return CaseResult.from_contact(case, target.name, task, start, result,
+                                       time.perf_counter() - started,
+                                       cpu_time=time.process_time() - cpu)
+    discovery_seconds = time.perf_counter() - started
+    outcome, stage_times = _later_stages(target.name, task, stages, result,
+                                         dataclasses.replace(setup, problem=problem))
+    record = CaseResult.from_contact(case, target.name, task, start, result,
+                                     time.perf_counter() - started,
+                                     cpu_time=time.process_time() - cpu)
+    return record.after_stages(outcome, [{"stage": "discover", "status": result.status,
+                                          "seconds": discovery_seconds}, *stage_times])
+
+
+def _later_stages(plan: str, task: str, stages, result, setup) -> tuple[Any, list[dict]]:
+    """The outcome of a plan's stages after its discovery (`result` on `setup`'s
+    problem), collisions checked, and each stage's name, status, iterations and seconds."""
+    import tempfile
+
+    from tfcontact.scenes import check_collisions
+    from tfcontact.scenes.pipeline import StageInput, discovery_outcome
+
+    outcome = discovery_outcome(result, setup)
+    times = []
+    with tempfile.TemporaryDirectory(prefix="tfcontact-case-") as out:
+        for stage in stages:
+            began = time.perf_counter()
+            outcome = stage.run(StageInput(plan, task, Path(out), False, None, outcome))
+            solver = {} if outcome.trajectory is None else outcome.trajectory.solver
+            times.append({"stage": stage.name, "status": outcome.status,
+                          "iterations": int(solver.get("iterations", 0)),
+                          "seconds": time.perf_counter() - began})
+    began = time.perf_counter()
+    outcome, collisions, _ = check_collisions(outcome)
+    times.append({"stage": "collision check", "status": collisions.get("status",
+                                                                       "not checked"),
+                  "seconds": time.perf_counter() - began})
+    return outcome, times
 
 
 class Progress(ABC):

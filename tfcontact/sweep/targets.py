@@ -6,6 +6,7 @@ import dataclasses
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -17,6 +18,10 @@ from tfcontact.sweep.perturbation import (
     PerturbedStart,
     perturbed_problem,
 )
+
+if TYPE_CHECKING:
+    from tfcontact.scenes import Plan
+    from tfcontact.scenes.pipeline import Stage
 
 
 class SweepTarget(ABC):
@@ -48,6 +53,11 @@ class SweepTarget(ABC):
         """What else defines this target's cases, for the sweep file (a resumed sweep must
         match it); default none."""
         return {}
+
+    def later_stages(self, task: str) -> tuple[Stage, ...]:
+        """The plan's stages after its discovery that a case runs on the discovery's
+        outcome, as `tfcontact plan` would (default none: the discovery is the plan)."""
+        return ()
 
 
 HOPPER_PERTURBATION = Perturbation((
@@ -159,8 +169,9 @@ class ParticleTarget(SweepTarget):
 
 @dataclass(frozen=True)
 class PlanTarget(SweepTarget):
-    """Any plan of `tfcontact.scenes.PLANS` with a `build`: its starts perturbed by the
-    defaults of its coordinate names, only options-level grid keys."""
+    """Any plan of `tfcontact.scenes.PLANS` (or task file) that starts with a discovery:
+    its starts perturbed by the defaults of its coordinate names, only options-level grid
+    keys; a case runs the plan's later stages too (e.g. biped-walk's stance re-solve)."""
 
     name: str
     tasks: tuple[str, ...]
@@ -173,6 +184,9 @@ class PlanTarget(SweepTarget):
                                f"{sorted(params)}")
         return plan_named(self.name).build(task)
 
+    def later_stages(self, task: str) -> tuple[Stage, ...]:
+        return plan_named(self.name).stages_for(task)[1:]
+
 
 SWEEP_TARGETS: dict[str, SweepTarget] = {"hopper": HopperTarget(),
                                          "particle": ParticleTarget()}
@@ -184,22 +198,28 @@ def sweep_target(plan: str) -> SweepTarget:
     """The `SweepTarget` of the plan named `plan`."""
     if plan in SWEEP_TARGETS:
         return SWEEP_TARGETS[plan]
-    # a sweep solves one contact problem per case: plans of a single discovery stage
-    sweepable = sorted({*SWEEP_TARGETS, *(n for n, p in PLANS.items()
-                                          if p.build is not None and len(p.stages) == 1)})
-    if plan not in PLANS:
+    # a case perturbs the discovery's start, and every later stage must solve from the
+    # outcome before it, not a problem of its own
+    sweepable = sorted({*SWEEP_TARGETS, *(n for n, p in PLANS.items() if _sweepable(p))})
+    if plan in PLANS:
+        found = PLANS[plan]
+    else:
         try:
             found = plan_named(plan)  # a task file or a shipped task
         except InvalidInput:
             raise InvalidInput(f"unknown plan `{plan}`; sweepable plans: "
                                f"{', '.join(sweepable)}, or a task file PATH.toml") from None
-        return PlanTarget(plan, found.tasks)
-    if PLANS[plan].build is None:
+    if found.build is None:
         raise InvalidInput(f"plan `{plan}` does not start with a discovery, so it has no "
                            f"single contact problem whose start a sweep could perturb; "
                            f"sweepable plans: {', '.join(sweepable)}")
-    if len(PLANS[plan].stages) > 1:
-        raise InvalidInput(f"plan `{plan}` has stages after its discovery "
-                           f"({', '.join(s.name for s in PLANS[plan].stages[1:])}) that a "
-                           f"sweep does not run; sweepable plans: {', '.join(sweepable)}")
-    return PlanTarget(plan, PLANS[plan].tasks)
+    own = [s.name for s in found.stages if s.own_setup]
+    if own:
+        raise InvalidInput(f"plan `{plan}` has stages that solve problems of their own "
+                           f"({', '.join(own)}), not the perturbed start's; sweepable "
+                           f"plans: {', '.join(sweepable)}")
+    return PlanTarget(plan, found.tasks)
+
+
+def _sweepable(plan: Plan) -> bool:
+    return plan.build is not None and not any(s.own_setup for s in plan.stages)
