@@ -232,6 +232,39 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
             passed.failure_kind) == (True, True, None, None)
 
 
+def test_later_stages_count_only_the_iterations_of_stages_that_ran(monkeypatch, tmp_path):
+    """A stage that did not start hands on the discovery's trajectory: its iterations are
+    not counted again; a stage that solved reports its own; the collision check runs on
+    the last outcome (stand-ins for the stages, trajectories and the check)."""
+    from types import SimpleNamespace as NS
+
+    import tfcontact.scenes
+    from tfcontact.scenes.pipeline import PlanOutcome, Stage
+    from tfcontact.sweep.run import run_later_stages
+
+    class NotStarted(Stage):
+        name = "not started"
+
+        def run(self, given):
+            return dataclasses.replace(given.previous, success=False)
+
+    class Solves(Stage):
+        name = "solves"
+
+        def run(self, given):
+            return PlanOutcome(NS(solver={"iterations": 42}), None, "converged", True, "ok")
+
+    checked = []
+    monkeypatch.setattr(tfcontact.scenes, "check_collisions", lambda outcome: (
+        checked.append(outcome) or outcome, {"status": "clear"}, None))
+    found = PlanOutcome(NS(solver={"iterations": 3000}), None, "converged", True, "found")
+    outcome, times = run_later_stages("p", "t", (NotStarted(), Solves()), found)
+    assert [(t["stage"], t["status"]) for t in times] == [
+        ("not started", "converged"), ("solves", "converged"), ("collision check", "clear")]
+    assert [t.get("iterations") for t in times] == [0, 42, None]
+    assert checked == [outcome] and outcome.summary == "ok"
+
+
 # ---------------------------------------------------------------- perturbed starts
 
 

@@ -56,9 +56,11 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
         return CaseResult.from_contact(case, target.name, task, start, result,
                                        time.perf_counter() - started,
                                        cpu_time=time.process_time() - cpu)
+    from tfcontact.scenes.pipeline import discovery_outcome
+
     discovery_seconds = time.perf_counter() - started
-    outcome, stage_times = _later_stages(target.name, task, stages, result,
-                                         dataclasses.replace(setup, problem=problem))
+    found = discovery_outcome(result, dataclasses.replace(setup, problem=problem))
+    outcome, stage_times = run_later_stages(target.name, task, stages, found)
     record = CaseResult.from_contact(case, target.name, task, start, result,
                                      time.perf_counter() - started,
                                      cpu_time=time.process_time() - cpu)
@@ -66,21 +68,23 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
                                           "seconds": discovery_seconds}, *stage_times])
 
 
-def _later_stages(plan: str, task: str, stages, result, setup) -> tuple[Any, list[dict]]:
-    """The outcome of a plan's stages after its discovery (`result` on `setup`'s
-    problem), collisions checked, and each stage's name, status, iterations and seconds."""
+def run_later_stages(plan: str, task: str, stages, outcome) -> tuple[Any, list[dict]]:
+    """The outcome of a plan's `stages` after its discovery (whose `PlanOutcome` is
+    `outcome`), collisions checked, and each stage's name, status, IPOPT iterations (0
+    for a stage that did not start) and seconds."""
     import tempfile
 
     from tfcontact.scenes import check_collisions
-    from tfcontact.scenes.pipeline import StageInput, discovery_outcome
+    from tfcontact.scenes.pipeline import StageInput
 
-    outcome = discovery_outcome(result, setup)
     times = []
     with tempfile.TemporaryDirectory(prefix="tfcontact-case-") as out:
         for stage in stages:
-            began = time.perf_counter()
+            began, before = time.perf_counter(), outcome
             outcome = stage.run(StageInput(plan, task, Path(out), False, None, outcome))
-            solver = {} if outcome.trajectory is None else outcome.trajectory.solver
+            # a stage that did not start hands on the trajectory before it, not its own
+            solver = ({} if outcome.trajectory is None
+                      or outcome.trajectory is before.trajectory else outcome.trajectory.solver)
             times.append({"stage": stage.name, "status": outcome.status,
                           "iterations": int(solver.get("iterations", 0)),
                           "seconds": time.perf_counter() - began})
