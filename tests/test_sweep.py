@@ -230,6 +230,16 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
                                 [{**s, "status": "converged"} for s in stages[:2]])
     assert (passed.success, passed.first_attempt_success, passed.failure,
             passed.failure_kind) == (True, True, None, None)
+    # the table says what a case ran and names the failed stage
+    from pathlib import Path
+
+    from tfcontact.sweep.results import SweepResult
+
+    table = SweepResult(SweepSpec("hopper", starts=2), Path("."), (failed, passed), 2, 0,
+                        1.0, "here").table()
+    assert ("Each case also ran the plan's later stages (stance re-solve, collision check)"
+            in table)
+    assert "| collision check: collision | 1 |" in table
 
 
 def test_later_stages_count_only_the_iterations_of_stages_that_ran(monkeypatch, tmp_path):

@@ -95,7 +95,8 @@ def markdown(result: SweepResult) -> str:
         "(`ContactResult.success`); *at the 1st attempt* when its first solve (from the "
         "unperturbed guess) did; the plan's later attempts restart from a perturbed guess. "
         "Wall time: the whole case on its worker, all attempts; CPU time: its worker "
-        "process's (on a shared machine the wall time also counts the waits for a core).",
+        "process's (on a shared machine the wall time also counts the waits for a core)."
+        + _stages_text(cases),
         "",
         _HEADER.format(""),
         _row("all", cases),
@@ -129,6 +130,18 @@ def markdown(result: SweepResult) -> str:
                      f"{c.objective:.4g} | {c.wall_time:.1f} | "
                      f"{c.times.get('cpu', math.nan):.1f} | {failure} |")
     return "\n".join(lines) + "\n"
+
+
+def _stages_text(cases: Sequence[CaseResult]) -> str:
+    """What a case ran after its discovery, if anything (`CaseResult.after_stages`)."""
+    stages = next((c.extra["stages"] for c in cases if c.extra.get("stages")), None)
+    if not stages:
+        return ""
+    later = [s["stage"] for s in stages[1:]]
+    return (f" Each case also ran the plan's later stages ({', '.join(later)}) as "
+            "`tfcontact plan` does: it is verified when the whole plan succeeded (the last "
+            "stage's plan verified, its task done, clear of the terrain), and its iterations "
+            "count every stage's.")
 
 
 _MARKERS = {"verified, 1st attempt": ("o", "tab:green"),
