@@ -275,6 +275,43 @@ def test_later_stages_count_only_the_iterations_of_stages_that_ran(monkeypatch, 
     assert checked == [outcome] and outcome.summary == "ok"
 
 
+def test_a_task_file_states_the_start_ranges_of_its_sweep(tmp_path):
+    """`start_ranges` in a task file: a sweep perturbs those coordinates only, within their
+    ranges (here the body along x and the front leg shortened: no height offset, so the
+    other foot stays on the ground); a name the robot has not, or a range without
+    low < high, is refused with the field named."""
+    from strider import write_strider
+
+    path = write_strider(tmp_path)
+    text = path.read_text()
+    path.write_text(text + "[start_ranges]\nx = [-0.02, 0.02]\nleg0 = [-0.02, -0.001]\n")
+    target = sweep_target(str(path))
+    setup = target.setup("task", {})
+    perturbation = target.perturbation(setup)
+    assert perturbation.to_dict() == {"x": [-0.02, 0.02], "leg0": [-0.02, -0.001]}
+    names = list(setup.problem.system.cls.q_names)
+    gaps = setup.problem.system.cls.function("gaps")
+    for k in range(5):
+        start = perturbation.sample(setup.problem, np.random.default_rng([0, k]))
+        assert set(start.offsets) == {"x", "leg0"}
+        assert abs(start.offsets["x"]) <= 0.02 and -0.02 <= start.offsets["leg0"] <= -0.001
+        moved = np.flatnonzero(start.q0 != setup.problem.q0)
+        assert [names[i] for i in moved] == ["x", "leg0"]
+        gap = np.asarray(gaps(start.q0)).ravel()
+        assert gap[0] > 0 and gap[1] == pytest.approx(0.0, abs=1e-9)  # toe0 up, toe1 down
+    # without the table: the base's default ranges (the height only upwards)
+    path.write_text(text)
+    plain = sweep_target(str(path))
+    assert "z" in plain.perturbation(plain.setup("task", {})).to_dict()
+    for table, message in (("[start_ranges]\nheight = [0.0, 0.1]\n",
+                            "`start_ranges` names ['height'], which the robot has not"),
+                           ("[start_ranges]\nx = [0.1, -0.1]\n",
+                            "`start_ranges.x` must have low < high, got [0.1, -0.1]")):
+        path.write_text(text + table)
+        with pytest.raises(InvalidInput, match=re.escape(message)):  # not "unknown plan"
+            sweep_target(str(path)).setup("task", {})
+
+
 # ---------------------------------------------------------------- perturbed starts
 
 

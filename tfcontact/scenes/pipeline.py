@@ -41,13 +41,15 @@ class PlanSetup:
     `tfcontact.robot.Terrain` the contacts' gaps model, if one (the trajectory's forces
     then follow its normal along the plan), else None (one plane: the scene's normal).
     `options`: the discovery's `ContactSolverOptions` (None for a setup only re-solved
-    exactly)."""
+    exactly). `start_ranges`: {name: (low, high)} offsets a stability sweep draws for the
+    start (a task's `start_ranges`); None: the sweep's defaults."""
 
     robot: Robot
     problem: ContactProblem
     options: ContactSolverOptions | None
     scene: dict
     terrain: Terrain | None = None
+    start_ranges: dict[str, tuple[float, float]] | None = None
 
 
 @dataclass(frozen=True)

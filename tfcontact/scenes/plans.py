@@ -109,7 +109,8 @@ def task_plan(source: str | Path) -> Plan:
 
         setup = build_task(data)
         terrain = setup.terrain if isinstance(setup.terrain, Terrain) else None
-        return PlanSetup(setup.robot, setup.problem, setup.options, setup.scene, terrain)
+        return PlanSetup(setup.robot, setup.problem, setup.options, setup.scene, terrain,
+                         start_ranges=dict(data.start_ranges) or None)
 
     # one contact: its sequence with slip phases (`polish`); several: the stances found,
     # where the task's path rows (its no-slip rows: `build_task`) hold by construction

@@ -6,6 +6,7 @@ import dataclasses
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -170,8 +171,9 @@ class ParticleTarget(SweepTarget):
 @dataclass(frozen=True)
 class PlanTarget(SweepTarget):
     """Any plan of `tfcontact.scenes.PLANS` (or task file) that starts with a discovery:
-    its starts perturbed by the defaults of its coordinate names, only options-level grid
-    keys; a case runs the plan's later stages too (e.g. biped-walk's stance re-solve)."""
+    its starts perturbed by its task's `start_ranges` or else the defaults of its
+    coordinate names, only options-level grid keys; a case runs the plan's later stages
+    too (e.g. biped-walk's stance re-solve)."""
 
     name: str
     tasks: tuple[str, ...]
@@ -186,6 +188,12 @@ class PlanTarget(SweepTarget):
 
     def later_stages(self, task: str) -> tuple[Stage, ...]:
         return plan_named(self.name).stages_for(task)[1:]
+
+    def perturbation(self, setup: PlanSetup) -> Perturbation:
+        if setup.start_ranges:
+            return Perturbation(tuple(CoordinateRange(name, low, high)
+                                      for name, (low, high) in setup.start_ranges.items()))
+        return super().perturbation(setup)
 
 
 SWEEP_TARGETS: dict[str, SweepTarget] = {"hopper": HopperTarget(),
@@ -207,6 +215,8 @@ def sweep_target(plan: str) -> SweepTarget:
         try:
             found = plan_named(plan)  # a task file or a shipped task
         except InvalidInput:
+            if Path(plan).is_file():
+                raise  # the task file's own error names its field
             raise InvalidInput(f"unknown plan `{plan}`; sweepable plans: "
                                f"{', '.join(sweepable)}, or a task file PATH.toml") from None
     if found.build is None:

@@ -309,6 +309,7 @@ def _check_names(task: Task, state_names: list[str], frames: list[str]) -> None:
     coordinates = state_names[:len(state_names) // 2]
     # fields that may name velocities too, and those about coordinates only
     fields = [("start", task.start, state_names), ("bounds", task.bounds, state_names),
+              ("start_ranges", task.start_ranges, state_names),
               ("costs.tracking", task.costs.tracking, state_names),
               ("costs.terminal", task.costs.terminal, state_names),
               *((f"waypoints[t={w.time:g}]", w.values, state_names) for w in task.waypoints),

@@ -70,7 +70,7 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "actuated", "effort", "bounds", "terrain", "waypoints", "goals", "costs", "solver",
         "guess", "a_n", "gap_scale", "exact_resolve",
         "complementarity_tolerance", "finite_elements", "friction_model", "periodic",
-        "period", "period_from", "barrier", "resolve_elements"}
+        "period", "period_from", "barrier", "resolve_elements", "start_ranges"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "eps_t", "reach"}
@@ -147,6 +147,7 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         if isinstance(actuated, list) else actuated,
         effort=top.get("effort", {}),
         bounds=top.get("bounds", {}),
+        start_ranges=top.get("start_ranges", {}),
         terrain=terrain_from_dict(top.get("terrain", {})),
         waypoints=tuple(parsed_waypoints),
         goals=Goals(**_table(top.get("goals", {}), "goals", _GOALS)),

@@ -356,6 +356,10 @@ class Task:
             (needed where the URDF gives none).
         bounds: {name: [low, high]} for coordinates and velocities, replacing the URDF's
             joint position limits.
+        start_ranges: {name: [low, high]}: the offsets a stability sweep (`tfcontact
+            sweep`) adds to the start's coordinates and velocities, drawn uniformly (default:
+            the library's base ranges, `tfcontact.sweep.DEFAULT_RANGES`). A walk that
+            starts on its feet states ranges that keep it there.
         terrain: the ground: a `PlaneTerrain` (one plane) or a `PrimitiveTerrain` (planes,
             boxes, holes).
         waypoints: `Waypoint`s, in increasing time within the horizon.
@@ -420,6 +424,7 @@ class Task:
     actuated: tuple[str, ...] | None = None
     effort: Mapping[str, float] = field(default_factory=dict)
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    start_ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     terrain: PlaneTerrain | PrimitiveTerrain = field(default_factory=PlaneTerrain)
     waypoints: tuple[Waypoint, ...] = ()
     goals: Goals = field(default_factory=Goals)
@@ -468,6 +473,7 @@ class Task:
             {k: finite(v, f"effort.{k}", low=0.0, strict=True) for k, v in
              _names(self.effort, "effort").items()}))
         object.__setattr__(self, "bounds", _ranges(self.bounds, "bounds"))
+        object.__setattr__(self, "start_ranges", _ranges(self.start_ranges, "start_ranges"))
         if not isinstance(self.terrain, PlaneTerrain | PrimitiveTerrain):
             raise InvalidInput("`terrain` must be a PlaneTerrain ([terrain] height, normal) "
                                "or a PrimitiveTerrain ([[terrain.primitives]])")
