@@ -200,8 +200,8 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
     from types import SimpleNamespace as NS
 
     found = CaseResult.from_error(SweepCase((), 0, 0), "walk", "task", RuntimeError("x"))
-    found = dataclasses.replace(found, status="converged", success=True,
-                                first_attempt_success=True, iterations=800,
+    found = dataclasses.replace(found, status="verification_failed", success=False,
+                                first_attempt_success=False, attempts_used=1, iterations=800,
                                 failure=None, failure_kind=None)
     stages = [{"stage": "discover", "status": "converged", "seconds": 1.0},
               {"stage": "stance re-solve", "status": "nlp_failed", "iterations": 3000,

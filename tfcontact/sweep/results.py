@@ -141,7 +141,9 @@ class CaseResult:
             kind = f"{_failed_stage(stages)}: {outcome.status}"
         return dataclasses.replace(
             self, status=outcome.status, success=success,
-            first_attempt_success=self.first_attempt_success and success,
+            # the whole plan from the discovery's first attempt (whose relaxed plan may
+            # fail the reference that the later stage's plan passes)
+            first_attempt_success=success and self.attempts_used == 1,
             iterations=self.iterations + sum(int(s.get("iterations", 0)) for s in stages[1:]),
             objective=float(solver.get("objective", math.nan)),
             end_state_deviation=float(verification.get("end_state_deviation", math.nan)),
