@@ -230,6 +230,13 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
                                 [{**s, "status": "converged"} for s in stages[:2]])
     assert (passed.success, passed.first_attempt_success, passed.failure,
             passed.failure_kind) == (True, True, None, None)
+    # a discovery whose relaxed plan failed its replay (as biped-walk's does) is not the
+    # stage to blame when the re-solve after it fails
+    stages = [{"stage": "discover", "status": "verification_failed", "seconds": 1.0},
+              {"stage": "stance re-solve", "status": "nlp_failed", "iterations": 5,
+               "seconds": 2.0},
+              {"stage": "collision check", "status": "clear", "seconds": 0.1}]
+    assert found.after_stages(outcome, stages).failure_kind == "stance re-solve: nlp_failed"
     # the table says what a case ran and names the failed stage
     from pathlib import Path
 

@@ -14,6 +14,7 @@ pipeline of its own.
 from __future__ import annotations
 
 import dataclasses
+import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -122,6 +123,28 @@ class Discover(Stage):
                   f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
         result = solve_contact(problem, options, verbose=given.verbose)
         return discovery_outcome(result, setup)
+
+
+def run_stages(plan: str, task: str, stages: Sequence[Stage], out: Path, *,
+               verbose: bool = False, attempts: int | None = None,
+               outcome: PlanOutcome | None = None) -> tuple[PlanOutcome, list[dict]]:
+    """Run `stages` in turn, each given the outcome before it (`outcome` first: None when
+    the first stage is a discovery). Returns the last outcome and, per stage, its name,
+    status, IPOPT iterations and seconds (a stage that did not start hands on the
+    trajectory before it: 0 iterations of its own)."""
+    times = []
+    for stage in stages:
+        if verbose and len(stages) > 1:
+            print(f"plan {plan} ({task}): stage {stage.name}", flush=True)
+        began, before = time.perf_counter(), outcome
+        outcome = stage.run(StageInput(plan, task, out, verbose, attempts, outcome))
+        ran = outcome.trajectory is not None and (
+            before is None or outcome.trajectory is not before.trajectory)
+        times.append({"stage": stage.name, "status": outcome.status,
+                      "iterations": int(outcome.trajectory.solver.get("iterations", 0))
+                      if ran else 0,
+                      "seconds": time.perf_counter() - began})
+    return outcome, times
 
 
 def discovery_outcome(result: ContactResult, setup: PlanSetup) -> PlanOutcome:

@@ -25,8 +25,8 @@ from tfcontact.scenes.pipeline import (
     Plan,
     PlanOutcome,
     PlanSetup,
-    StageInput,
     StanceResolve,
+    run_stages,
 )
 
 if TYPE_CHECKING:
@@ -161,16 +161,8 @@ def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
     folder.check()
     start = time.perf_counter()
     with folder.staging() as stage:
-        outcome = None
-        stages = plan.stages_for(task)
-        stage_times = []  # where a plan's time goes, in summary.json
-        for step in stages:
-            if verbose and len(stages) > 1:
-                print(f"plan {name} ({task}): stage {step.name}", flush=True)
-            began = time.perf_counter()
-            outcome = step.run(StageInput(name, task, stage, verbose, attempts, outcome))
-            stage_times.append({"stage": step.name, "status": outcome.status,
-                                "seconds": time.perf_counter() - began})
+        outcome, stage_times = run_stages(name, task, plan.stages_for(task), stage,
+                                          verbose=verbose, attempts=attempts)
         began = time.perf_counter()
         outcome, collisions, report = check_collisions(outcome)
         collision_files = ([] if report is None
@@ -196,8 +188,8 @@ def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanO
                    collisions: dict, collision_files: list[Path],
                    stage_times: list[dict]) -> list[Path]:
     """Write the trajectory, figures, replay and summary.json of a solved (or failed) plan
-    into `out`; returns the paths written. `stage_times`: each stage's name, status and
-    seconds; the writing's own seconds are added."""
+    into `out`; returns the paths written. `stage_times`: each stage's name, status,
+    iterations and seconds; the writing's own seconds are added."""
     from tfcontact.plan_format import save_trajectory
     from tfcontact.plan_format.resolved import save_resolved_plan
     from tfcontact.viz import plot_trajectory, replay

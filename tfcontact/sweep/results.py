@@ -22,10 +22,12 @@ ERROR = "error"
 """The status of a case whose solve raised (the exception's type and message in `failure`)."""
 
 
-def _failed_stage(stages: list[dict]) -> str:
-    """The first stage that did not pass: not converged, or a collision found."""
-    return next((s["stage"] for s in stages if s["status"] not in ("converged", "clear")),
-                stages[-1]["stage"])
+def _failed_stage(stages: list[dict], status: str) -> str:
+    """The stage whose status the failed plan ended with: the first one that reported it
+    (a stage that did not start hands on the status before it; a discovery's relaxed plan
+    may report "verification_failed" and still be re-solved), else the last (the
+    collision check, whose own status is the report's)."""
+    return next((s["stage"] for s in stages if s["status"] == status), stages[-1]["stage"])
 
 
 class CaseFileError(TfcontactError):
@@ -138,13 +140,14 @@ class CaseResult:
             failing = [line for line in lines if any(
                 word in line for word in ("FAILED", "not started", "missed"))]
             failure = (failing or lines or [outcome.status])[-1]
-            kind = f"{_failed_stage(stages)}: {outcome.status}"
+            kind = f"{_failed_stage(stages, outcome.status)}: {outcome.status}"
         return dataclasses.replace(
             self, status=outcome.status, success=success,
             # the whole plan from the discovery's first attempt (whose relaxed plan may
             # fail the reference that the later stage's plan passes)
             first_attempt_success=success and self.attempts_used == 1,
-            iterations=self.iterations + sum(int(s.get("iterations", 0)) for s in stages[1:]),
+            # the discovery's entry has no iterations: its attempts counted them
+            iterations=self.iterations + sum(int(s.get("iterations", 0)) for s in stages),
             objective=float(solver.get("objective", math.nan)),
             end_state_deviation=float(verification.get("end_state_deviation", math.nan)),
             failure=failure, failure_kind=kind,

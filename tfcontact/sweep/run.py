@@ -71,23 +71,15 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
 def run_later_stages(plan: str, task: str, stages, outcome) -> tuple[Any, list[dict]]:
     """The outcome of a plan's `stages` after its discovery (whose `PlanOutcome` is
     `outcome`), collisions checked, and each stage's name, status, IPOPT iterations (0
-    for a stage that did not start) and seconds."""
+    for a stage that did not start) and seconds (`tfcontact.scenes.pipeline.run_stages`,
+    as `tfcontact plan` runs them)."""
     import tempfile
 
     from tfcontact.scenes import check_collisions
-    from tfcontact.scenes.pipeline import StageInput
+    from tfcontact.scenes.pipeline import run_stages
 
-    times = []
     with tempfile.TemporaryDirectory(prefix="tfcontact-case-") as out:
-        for stage in stages:
-            began, before = time.perf_counter(), outcome
-            outcome = stage.run(StageInput(plan, task, Path(out), False, None, outcome))
-            # a stage that did not start hands on the trajectory before it, not its own
-            solver = ({} if outcome.trajectory is None
-                      or outcome.trajectory is before.trajectory else outcome.trajectory.solver)
-            times.append({"stage": stage.name, "status": outcome.status,
-                          "iterations": int(solver.get("iterations", 0)),
-                          "seconds": time.perf_counter() - began})
+        outcome, times = run_stages(plan, task, stages, Path(out), outcome=outcome)
     began = time.perf_counter()
     outcome, collisions, _ = check_collisions(outcome)
     times.append({"stage": "collision check", "status": collisions.get("status",
