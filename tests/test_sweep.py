@@ -202,7 +202,8 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
     found = CaseResult.from_error(SweepCase((), 0, 0), "walk", "task", RuntimeError("x"))
     found = dataclasses.replace(found, status="verification_failed", success=False,
                                 first_attempt_success=False, attempts_used=1, iterations=800,
-                                failure=None, failure_kind=None)
+                                attempt_statuses=("verification_failed",), failure=None,
+                                failure_kind=None)
     stages = [{"stage": "discover", "status": "converged", "seconds": 1.0},
               {"stage": "stance re-solve", "status": "nlp_failed", "iterations": 3000,
                "seconds": 2.0},
@@ -247,6 +248,10 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
     assert ("Each case also ran the plan's later stages (stance re-solve, collision check)"
             in table)
     assert "| collision check: collision | 1 |" in table
+    assert "| status | attempts, later stages |" in table
+    assert ("| collision | verification_failed; then stance re-solve converged, collision "
+            "check penetration |") in table
+    assert "| converged | verification_failed; then stance re-solve converged |" in table
 
 
 def test_later_stages_count_only_the_iterations_of_stages_that_ran(monkeypatch, tmp_path):

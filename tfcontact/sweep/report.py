@@ -118,13 +118,20 @@ def markdown(result: SweepResult) -> str:
               for kind in kinds]
     names = next((c.q_names for c in cases if c.q_names), ())
     offsets = [n for n in names if any(n in c.offsets for c in cases)]
+    attempts_header = "attempts" + (", later stages" if _stages_text(cases) else "")
     lines += ["", "## Cases", "",
               "| case | " + " | ".join(f"d{n}" for n in offsets)
-              + " | status | attempts | iterations | cost | wall [s] | CPU [s] | failure |",
+              + f" | status | {attempts_header} | iterations | cost | wall [s] | CPU [s] "
+              "| failure |",
               "|---|" + "---|" * (len(offsets) + 7)]
     for c in cases:
         deltas = " | ".join(f"{c.offsets[n]:+.4f}" if n in c.offsets else "-" for n in offsets)
         attempts = " > ".join(c.attempt_statuses) or "-"
+        # a discovery's relaxed plan may fail its replay where the stage after it passes:
+        # the row says what each later stage ended with
+        later = c.extra.get("stages", [])[1:]
+        if later:
+            attempts += "; then " + ", ".join(f"{s['stage']} {s['status']}" for s in later)
         failure = (c.failure or "").replace("|", "/")
         lines.append(f"| {c.case_id} | {deltas} | {c.status} | {attempts} | {c.iterations} | "
                      f"{c.objective:.4g} | {c.wall_time:.1f} | "
