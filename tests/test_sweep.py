@@ -392,7 +392,12 @@ def _case_files(folder):
 
 def test_sweep_runs_on_a_local_cluster_and_resumes(tmp_path, capsys):
     """The command's sweep of 2 starts x 2 relaxations: one case file each, the table's
-    counts equal the files', a PNG chart; a rerun solves nothing new."""
+    counts equal the files', a PNG chart, the workers' thread settings; a rerun solves
+    nothing new; the caller's environment is as before (Dask's OMP_NUM_THREADS=1 for its
+    workers does not stay behind)."""
+    import os
+
+    environment = dict(os.environ)
     parser = argparse.ArgumentParser()
     add_sweep_parser(parser.add_subparsers())
     out = tmp_path / "sweep"
@@ -401,6 +406,7 @@ def test_sweep_runs_on_a_local_cluster_and_resumes(tmp_path, capsys):
     assert args.func(args) == 0
     printed = capsys.readouterr().out
     assert "4 to solve on a LocalCluster of 2 worker processes" in printed
+    assert dict(os.environ) == environment
     assert "[4/4]" in printed and "particle (reduced): 4 cases" in printed
 
     files = _case_files(out)
@@ -418,6 +424,8 @@ def test_sweep_runs_on_a_local_cluster_and_resumes(tmp_path, capsys):
                                     sum(r["first_attempt_success"] for r in records))
     assert "## By grid value" in table and "| relaxation=linf | 2 |" in table
     assert (out / "chart.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert ("the workers' OMP_NUM_THREADS=1, OPENBLAS_NUM_THREADS=1, MKL_NUM_THREADS=1"
+            in table)
 
     spec = SweepSpec("particle", starts=2, task="reduced",
                      grid={"relaxation": ["scholtes", "linf"]})

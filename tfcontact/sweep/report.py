@@ -74,7 +74,10 @@ def _runs(runs: Sequence[dict]) -> str:
     parts = [f"{r['date']}: {r['solved']} cases on {r['cluster']} in {r['wall_time']:.0f} s"
              + (" (interrupted)" if r.get("interrupted") else "")
              + f", {r['cores']} cores, load average {r['load_start']:.1f} at the start and "
-               f"{r['load_end']:.1f} at the end" for r in runs]
+               f"{r['load_end']:.1f} at the end"
+             + (", the workers' " + ", ".join(f"{k}={v}" for k, v in
+                                             r["worker_threads"].items())
+                if r.get("worker_threads") else "") for r in runs]
     return ("Solved in " + "; ".join(parts) + ".") if parts else ""
 
 

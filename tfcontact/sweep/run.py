@@ -224,7 +224,8 @@ def run_sweep(spec: SweepSpec, out_dir: Path | str, *, scheduler: str | None = N
         with _client(scheduler, n_workers) as client:
             cases_dir.mkdir(parents=True, exist_ok=True)
             run = {"date": _now(), "cluster": cluster, "cores": os.cpu_count(),
-                   "load_start": round(os.getloadavg()[0], 2)}
+                   "load_start": round(os.getloadavg()[0], 2),
+                   "worker_threads": worker_threads(client)}
             try:
                 _solve(client, pending, spec, target, reporter, cases_dir, solved)
             finally:  # also when interrupted: the folder tells which runs made its cases
@@ -301,17 +302,47 @@ def _client(scheduler: str | None, n_workers: int) -> Iterator[Any]:
         return
     # The scheduler's HTTP server (the dashboard with bokeh) on any free port: two sweeps
     # at once would otherwise both claim 8787 (the second with a warning).
-    cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                           dashboard_address=":0", silence_logs=logging.ERROR)
-    client = Client(cluster)
+    # Starting the workers sets OMP_NUM_THREADS=1 and the like in this process's
+    # environment too, where a solver library loaded later would take them up and round
+    # differently (a stance re-solve then ended 4e-3 from its replay instead of 1e-6):
+    # the caller gets its environment back.
+    saved = dict(os.environ)
     try:
-        # Ctrl-C in a terminal reaches the whole process group: the workers leave it to
-        # this process, which cancels the cases and closes them (no worker tracebacks).
-        client.run(_ignore_interrupts)
-        yield client
+        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                               dashboard_address=":0", silence_logs=logging.ERROR)
+        client = Client(cluster)
+        try:
+            # Ctrl-C in a terminal reaches the whole process group: the workers leave it
+            # to this process, which cancels the cases and closes them (no tracebacks).
+            client.run(_ignore_interrupts)
+            yield client
+        finally:
+            client.close()
+            cluster.close()
     finally:
-        client.close()
-        cluster.close()
+        _restore_environment(saved)
+
+
+def _restore_environment(saved: dict[str, str]) -> None:
+    for name in [n for n in os.environ if n not in saved]:
+        del os.environ[name]
+    os.environ.update({n: v for n, v in saved.items() if os.environ.get(n) != v})
+
+
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+"""The environment that sets the threads of a worker's linear algebra: IPOPT's path
+depends on the rounding, so a sweep's table says what its workers had."""
+
+
+def _thread_environment() -> dict[str, str]:
+    return {n: os.environ.get(n, "unset") for n in THREAD_VARIABLES}
+
+
+def worker_threads(client: Any) -> dict[str, str]:
+    """The workers' `THREAD_VARIABLES` (values that differ between workers joined by
+    '/'), as Dask started them: a LocalCluster's workers get 1 for each."""
+    seen = list(client.run(_thread_environment).values())
+    return {n: "/".join(sorted({env[n] for env in seen})) for n in THREAD_VARIABLES}
 
 
 def _solve(client: Any, pending: list[SweepCase], spec: SweepSpec, target: SweepTarget,
