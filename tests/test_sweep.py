@@ -238,6 +238,22 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
                "seconds": 2.0},
               {"stage": "collision check", "status": "clear", "seconds": 0.1}]
     assert found.after_stages(outcome, stages).failure_kind == "stance re-solve: nlp_failed"
+    # ... nor when the re-solve's plan fails its checks too (biped-walk's start 008: one
+    # lift-off of a foot where two are asked); a re-solve that did not start hands on the
+    # discovery's status, and the discovery is blamed
+    missed = NS(trajectory=trajectory, status="verification_failed", success=False, task={},
+                summary="task: goal missed")
+    stages = [{"stage": "discover", "status": "verification_failed", "ran": True},
+              {"stage": "stance re-solve", "status": "verification_failed", "ran": True,
+               "iterations": 535},
+              {"stage": "collision check", "status": "clear", "ran": True}]
+    assert (found.after_stages(missed, stages).failure_kind
+            == "stance re-solve: verification_failed")
+    stages = [{"stage": "discover", "status": "nlp_failed", "ran": True},
+              {"stage": "stance re-solve", "status": "nlp_failed", "ran": False,
+               "iterations": 0},
+              {"stage": "collision check", "status": "clear", "ran": True}]
+    assert found.after_stages(outcome, stages).failure_kind == "discover: nlp_failed"
     # the table says what a case ran and names the failed stage
     from pathlib import Path
 

@@ -130,8 +130,8 @@ def run_stages(plan: str, task: str, stages: Sequence[Stage], out: Path, *,
                outcome: PlanOutcome | None = None) -> tuple[PlanOutcome, list[dict]]:
     """Run `stages` in turn, each given the outcome before it (`outcome` first: None when
     the first stage is a discovery). Returns the last outcome and, per stage, its name,
-    status, IPOPT iterations and seconds (a stage that did not start hands on the
-    trajectory before it: 0 iterations of its own)."""
+    status, whether it ran, IPOPT iterations and seconds (a stage that did not start hands
+    on the trajectory and status before it: not `ran`, 0 iterations of its own)."""
     times = []
     for stage in stages:
         if verbose and len(stages) > 1:
@@ -140,7 +140,7 @@ def run_stages(plan: str, task: str, stages: Sequence[Stage], out: Path, *,
         outcome = stage.run(StageInput(plan, task, out, verbose, attempts, outcome))
         ran = outcome.trajectory is not None and (
             before is None or outcome.trajectory is not before.trajectory)
-        times.append({"stage": stage.name, "status": outcome.status,
+        times.append({"stage": stage.name, "status": outcome.status, "ran": ran,
                       "iterations": int(outcome.trajectory.solver.get("iterations", 0))
                       if ran else 0,
                       "seconds": time.perf_counter() - began})

@@ -23,11 +23,14 @@ ERROR = "error"
 
 
 def _failed_stage(stages: list[dict], status: str) -> str:
-    """The stage whose status the failed plan ended with: the first one that reported it
-    (a stage that did not start hands on the status before it; a discovery's relaxed plan
-    may report "verification_failed" and still be re-solved), else the last (the
-    collision check, whose own status is the report's)."""
-    return next((s["stage"] for s in stages if s["status"] == status), stages[-1]["stage"])
+    """The stage whose status the failed plan ended with: the last one that ran and
+    reported it (a stage that did not start hands on the status before it; a discovery's
+    relaxed plan may report "verification_failed" and its re-solve fail the same way),
+    else the last (the collision check, whose own status is the report's). Records from
+    before `ran` was kept: a stage ran if it is the first or counted iterations."""
+    ran = [s for i, s in enumerate(stages)
+           if s.get("ran", i == 0 or s.get("iterations", 0) > 0) and s["status"] == status]
+    return ran[-1]["stage"] if ran else stages[-1]["stage"]
 
 
 class CaseFileError(TfcontactError):

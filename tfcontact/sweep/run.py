@@ -65,7 +65,8 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
                                      time.perf_counter() - started,
                                      cpu_time=time.process_time() - cpu)
     return record.after_stages(outcome, [{"stage": "discover", "status": result.status,
-                                          "seconds": discovery_seconds}, *stage_times])
+                                          "ran": True, "seconds": discovery_seconds},
+                                         *stage_times])
 
 
 def run_later_stages(plan: str, task: str, stages, outcome) -> tuple[Any, list[dict]]:
