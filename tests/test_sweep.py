@@ -197,7 +197,10 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
     """A discovery that converged and a stance re-solve that did not: the case fails with
     the re-solve's status and line; a plan through the terrain fails at the collision
     check (stand-ins for `PlanOutcome`: only the fields read)."""
+    from pathlib import Path
     from types import SimpleNamespace as NS
+
+    from tfcontact.sweep.results import SweepResult
 
     found = CaseResult.from_error(SweepCase((), 0, 0), "walk", "task", RuntimeError("x"))
     found = dataclasses.replace(found, status="verification_failed", success=False,
@@ -254,11 +257,11 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
                "iterations": 0},
               {"stage": "collision check", "status": "clear", "ran": True}]
     assert found.after_stages(outcome, stages).failure_kind == "discover: nlp_failed"
+    table = SweepResult(SweepSpec("hopper", starts=1), Path("."),
+                        (found.after_stages(outcome, stages),), 1, 0, 1.0, "here").table()
+    assert "| verification_failed; then stance re-solve not started, collision check clear |" \
+        in table
     # the table says what a case ran and names the failed stage
-    from pathlib import Path
-
-    from tfcontact.sweep.results import SweepResult
-
     table = SweepResult(SweepSpec("hopper", starts=2), Path("."), (failed, passed), 2, 0,
                         1.0, "here").table()
     assert ("Each case also ran the plan's later stages (stance re-solve, collision check)"

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from tfcontact.sweep.results import stage_ran
 from tfcontact.sweep.spec import GRID_PARAMETERS
 
 if TYPE_CHECKING:
@@ -134,7 +135,9 @@ def markdown(result: SweepResult) -> str:
         # the row says what each later stage ended with
         later = c.extra.get("stages", [])[1:]
         if later:
-            attempts += "; then " + ", ".join(f"{s['stage']} {s['status']}" for s in later)
+            attempts += "; then " + ", ".join(
+                f"{s['stage']} {s['status'] if stage_ran(s) else 'not started'}"
+                for s in later)
         failure = (c.failure or "").replace("|", "/")
         lines.append(f"| {c.case_id} | {deltas} | {c.status} | {attempts} | {c.iterations} | "
                      f"{c.objective:.4g} | {c.wall_time:.1f} | "

@@ -26,11 +26,15 @@ def _failed_stage(stages: list[dict], status: str) -> str:
     """The stage whose status the failed plan ended with: the last one that ran and
     reported it (a stage that did not start hands on the status before it; a discovery's
     relaxed plan may report "verification_failed" and its re-solve fail the same way),
-    else the last (the collision check, whose own status is the report's). Records from
-    before `ran` was kept: a stage ran if it is the first or counted iterations."""
-    ran = [s for i, s in enumerate(stages)
-           if s.get("ran", i == 0 or s.get("iterations", 0) > 0) and s["status"] == status]
+    else the last (the collision check, whose own status is the report's)."""
+    ran = [s for s in stages if stage_ran(s) and s["status"] == status]
     return ran[-1]["stage"] if ran else stages[-1]["stage"]
+
+
+def stage_ran(stage: dict) -> bool:
+    """Whether a case's stage entry ran (records from before `ran` was kept: unless it
+    counted 0 iterations of its own, as a stage that did not start does)."""
+    return bool(stage.get("ran", stage.get("iterations", 1) > 0))
 
 
 class CaseFileError(TfcontactError):
