@@ -279,7 +279,7 @@ def test_later_stages_count_only_the_iterations_of_stages_that_ran(monkeypatch, 
     the last outcome (stand-ins for the stages, trajectories and the check)."""
     from types import SimpleNamespace as NS
 
-    import tfcontact.scenes
+    import tfcontact.scenes.plans
     from tfcontact.scenes.pipeline import PlanOutcome, Stage
     from tfcontact.sweep.run import run_later_stages
 
@@ -296,13 +296,14 @@ def test_later_stages_count_only_the_iterations_of_stages_that_ran(monkeypatch, 
             return PlanOutcome(NS(solver={"iterations": 42}), None, "converged", True, "ok")
 
     checked = []
-    monkeypatch.setattr(tfcontact.scenes, "check_collisions", lambda outcome: (
+    monkeypatch.setattr(tfcontact.scenes.plans, "check_collisions", lambda outcome: (
         checked.append(outcome) or outcome, {"status": "clear"}, None))
     found = PlanOutcome(NS(solver={"iterations": 3000}), None, "converged", True, "found")
     outcome, times = run_later_stages("p", "t", (NotStarted(), Solves()), found)
     assert [(t["stage"], t["status"]) for t in times] == [
         ("not started", "converged"), ("solves", "converged"), ("collision check", "clear")]
     assert [t.get("iterations") for t in times] == [0, 42, None]
+    assert [t["ran"] for t in times] == [False, True, True]
     assert checked == [outcome] and outcome.summary == "ok"
 
 

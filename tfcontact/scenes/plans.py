@@ -25,11 +25,14 @@ from tfcontact.scenes.pipeline import (
     Plan,
     PlanOutcome,
     PlanSetup,
+    Stage,
     StanceResolve,
     run_stages,
 )
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     from tfcontact.robot import Ground
 
 COLLISION = "collision"
@@ -161,14 +164,10 @@ def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
     folder.check()
     start = time.perf_counter()
     with folder.staging() as stage:
-        outcome, stage_times = run_stages(name, task, plan.stages_for(task), stage,
-                                          verbose=verbose, attempts=attempts)
-        began = time.perf_counter()
-        outcome, collisions, report = check_collisions(outcome)
+        outcome, stage_times, collisions, report = run_checked(
+            name, task, plan.stages_for(task), stage, verbose=verbose, attempts=attempts)
         collision_files = ([] if report is None
                            else [save_collision_figure(report, stage / "collisions.png")])
-        stage_times.append({"stage": "collision check", "status": collisions.get(
-            "status", "not checked"), "seconds": time.perf_counter() - began})
         files = _write_outcome(name, task, stage, start, outcome, collisions,
                                collision_files, stage_times)
     files = [folder.final_path(f, stage) for f in files]
@@ -214,6 +213,23 @@ def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanO
         "collisions": collisions}, indent=2))
     files.append(out / "summary.json")
     return [Path(f) for f in files]
+
+
+def run_checked(plan: str, task: str, stages: Sequence[Stage], out: Path, *,
+                verbose: bool = False, attempts: int | None = None,
+                outcome: PlanOutcome | None = None
+                ) -> tuple[PlanOutcome, list[dict], dict, Any]:
+    """`run_stages`, then `check_collisions` on the last outcome, as `tfcontact plan` and
+    a sweep's case run a plan: the outcome, each stage's entry (the collision check's
+    last), the collision dict and report."""
+    outcome, times = run_stages(plan, task, stages, out, verbose=verbose,
+                                attempts=attempts, outcome=outcome)
+    began = time.perf_counter()
+    outcome, collisions, report = check_collisions(outcome)
+    times.append({"stage": "collision check", "status": collisions.get("status",
+                                                                       "not checked"),
+                  "ran": True, "seconds": time.perf_counter() - began})
+    return outcome, times, collisions, report
 
 
 def check_collisions(outcome: PlanOutcome) -> tuple[PlanOutcome, dict, Any]:

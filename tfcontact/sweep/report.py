@@ -122,7 +122,8 @@ def markdown(result: SweepResult) -> str:
               for kind in kinds]
     names = next((c.q_names for c in cases if c.q_names), ())
     offsets = [n for n in names if any(n in c.offsets for c in cases)]
-    attempts_header = "attempts" + (", later stages" if _stages_text(cases) else "")
+    later_stages = any(len(c.extra.get("stages", ())) > 1 for c in cases)
+    attempts_header = "attempts" + (", later stages" if later_stages else "")
     lines += ["", "## Cases", "",
               "| case | " + " | ".join(f"d{n}" for n in offsets)
               + f" | status | {attempts_header} | iterations | cost | wall [s] | CPU [s] "

@@ -71,21 +71,14 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
 
 def run_later_stages(plan: str, task: str, stages, outcome) -> tuple[Any, list[dict]]:
     """The outcome of a plan's `stages` after its discovery (whose `PlanOutcome` is
-    `outcome`), collisions checked, and each stage's name, status, IPOPT iterations (0
-    for a stage that did not start) and seconds (`tfcontact.scenes.pipeline.run_stages`,
-    as `tfcontact plan` runs them)."""
+    `outcome`), collisions checked, and each stage's entry (`tfcontact.scenes.plans.
+    run_checked`, as `tfcontact plan` runs them)."""
     import tempfile
 
-    from tfcontact.scenes import check_collisions
-    from tfcontact.scenes.pipeline import run_stages
+    from tfcontact.scenes.plans import run_checked
 
     with tempfile.TemporaryDirectory(prefix="tfcontact-case-") as out:
-        outcome, times = run_stages(plan, task, stages, Path(out), outcome=outcome)
-    began = time.perf_counter()
-    outcome, collisions, _ = check_collisions(outcome)
-    times.append({"stage": "collision check", "status": collisions.get("status",
-                                                                       "not checked"),
-                  "seconds": time.perf_counter() - began})
+        outcome, times, _, _ = run_checked(plan, task, stages, Path(out), outcome=outcome)
     return outcome, times
 
 
