@@ -214,14 +214,16 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
     trajectory = NS(solver={"objective": 3.2}, verification={"end_state_deviation": 0.7})
     outcome = NS(trajectory=trajectory, status="nlp_failed", success=False, task={},
                  summary="discovery: converged\nstances: nlp_failed, Maximum_Iterations\n"
-                         "verification PASSED (multi-contact): ...\ntask: all goals met")
+                         "stances: verification PASSED (multi-contact): ...\n"
+                         "task: all goals met")
     failed = found.after_stages(outcome, stages)
     assert (failed.status, failed.success, failed.first_attempt_success) == (
         "nlp_failed", False, False)
     assert failed.failure_kind == "stance re-solve: nlp_failed"
     assert failed.failure == "task: all goals met"  # no line says FAILED: the last one
     assert (failed.iterations, failed.objective, failed.end_state_deviation) == (3800, 3.2, 0.7)
-    assert failed.verification == "verification PASSED (multi-contact): ..."
+    # the re-solve's verdict, as `StancePlan.summary` words it
+    assert failed.verification == "stances: verification PASSED (multi-contact): ..."
     stages[1]["status"], stages[2]["status"] = "converged", "penetration"
     through = NS(trajectory=trajectory, status="collision", success=False, task={},
                  summary="stances: converged\ncollisions FAILED: FL_LOWER_LEG 3 mm in the "

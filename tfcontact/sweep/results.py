@@ -158,8 +158,11 @@ class CaseResult:
             objective=float(solver.get("objective", math.nan)),
             end_state_deviation=float(verification.get("end_state_deviation", math.nan)),
             failure=failure, failure_kind=kind,
-            verification=next((line for line in lines if line.startswith("verification")),
-                              ""),
+            # the last stage's verdict: its line may carry the stage's prefix
+            # ("stances: verification PASSED ...")
+            verification=next((line for line in reversed(lines) if any(
+                verdict in line for verdict in ("verification PASSED",
+                                                "verification FAILED"))), ""),
             extra={**self.extra, "stages": stages, "task": outcome.task})
 
     @classmethod
