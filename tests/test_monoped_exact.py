@@ -1,7 +1,9 @@
 """TF-9's monoped as stages (tfcontact.scenes.monoped_exact): the reduced hop's start, the
 tiled guess and the schedule search, the Radau levels, the files `tfcontact plan monoped`
-writes, and the reduced task end to end (slow: about 6 minutes). The chain's own rules
-(iteration caps, failures, refined meshes) are tested in tests/test_ocp_chain.py."""
+writes, and the reduced task end to end (slow: about 7 minutes). The Radau levels on the
+saved RK4 plan (slow: about 12 minutes) are in tests/test_monoped_radau_levels.py, a file
+of their own so that the test runner's two workers share the two longest tests. The chain's
+own rules (iteration caps, failures, refined meshes) are tested in tests/test_ocp_chain.py."""
 
 from __future__ import annotations
 
@@ -305,28 +307,6 @@ def test_reduced_monoped_exact_plan_hops_over_the_hole(tmp_path):
     foot = np.asarray(monoped_problem(REDUCED_TASK).foot(traj.q.T)).T
     x_c, a, b = 0.5, REDUCED_TASK.hole_half_width, REDUCED_TASK.hole_depth
     assert np.all(foot[:, 1] >= b * (1 - ((foot[:, 0] - x_c) / a) ** 2) - 1e-6)  # the bump
-
-
-@pytest.mark.slow
-def test_radau_levels_turn_the_rk4_plan_into_a_verified_radau_plan():
-    """The chain's last two levels from the saved RK4 plan (what its RK4 levels end
-    with): 12 Radau IIA elements per interval fail the exact replay, the mesh refined where
-    the local defects are large passes it, 4x closer than the RK4 plan (measured: 262 and
-    783 iterations, 8 minutes; defects summing to 8.6e-3 against the RK4 plan's 3.7e-2)."""
-    rk4 = load_resolved_plan(SAVED_PLAN.with_name("monoped_exact_rk4_plan.npz"))
-    mp = monoped_problem(EXACT_TASK)
-    result = resolve_chain(monoped_exact.radau_levels(mp.problem), rk4.phases,
-                           (rk4.t, rk4.x, rk4.u), verbose=False)
-    first, refined = result.steps
-    assert first.status == "verification_failed" and refined.status == "converged"
-    assert result.success and result.plan.integrator == "radau"
-    assert max(result.plan.substeps) == 24 and min(result.plan.substeps) == 12
-    v = result.plan.verification
-    assert v.defect_sum < 2e-2 and v.min_gap >= -1e-3
-    assert result.path_violation <= 1e-6
-    assert np.min(mp.hole_values(result.plan.x[:, :4])) >= -1e-6
-    np.testing.assert_allclose(result.plan.boundary_states[-1][:4], EXACT_TASK.q_goal,
-                               atol=1e-6)
 
 
 def test_the_scene_draws_the_holes_the_problem_keeps_out():
