@@ -10,14 +10,17 @@ from dataclasses import dataclass
 import pytest
 
 from tfcontact.errors import InvalidInput
+from tfcontact.ocp.goals import EndPosition, LiftOffs
 from tfcontact.scenes import plans
 from tfcontact.scenes.pipeline import (
+    LIFT_OFF_MARGIN,
     Discover,
     ExactResolve,
     Plan,
     PlanOutcome,
     Stage,
     StageInput,
+    lift_off_heights,
 )
 from tfcontact.scenes.plans import PLANS
 from tfcontact.sweep import SweepSpec, sweep_target
@@ -183,3 +186,12 @@ def test_a_re_solve_goes_on_from_the_verified_plan_before(tmp_path):
         PreviousPlan().begin(given(ResolveChain(failed, None, steps, 0.0, 1.0)), ())
     with pytest.raises(InvalidInput, match="goes on from an exact re-solve before it"):
         PreviousPlan().begin(given(None), ())
+
+
+def test_the_stance_re_solve_keeps_the_lift_off_goals_heights():
+    """A task's lift-off goals become the stance re-solve's swing heights (the goal's
+    height and a margin over IPOPT's bound relaxation), per contact; none without them."""
+    goals = [EndPosition("x", 0.2, 0.05), LiftOffs(1, 2, 0.05), LiftOffs(2, 1, 0.03)]
+    assert lift_off_heights(goals, 3) == (None, 0.05 + LIFT_OFF_MARGIN,
+                                          0.03 + LIFT_OFF_MARGIN)
+    assert lift_off_heights(goals[:1], 3) == ()

@@ -361,6 +361,45 @@ def test_the_biped_walk_task_builds_bolt_with_two_feet_in_the_plane():
                                    np.asarray(gaps(setup.problem.q0)).ravel(), atol=1e-12)
 
 
+@pytest.mark.slow
+def test_biped_walk_short_steps_once_per_foot_verified_and_clear(tmp_path):
+    """`tfcontact plan biped-walk-short` (biped-walk reduced to 0.6 s and one step per
+    foot, no period; measured about 45 s): from the start-everywhere guess the discovery
+    finds a step per foot, the stance re-solve along its stances makes the plan, which
+    passes the multi-contact reference, does its task and is clear of the ground. The
+    feet's lift-offs and the base's end are checked here on Pinocchio's foot placements."""
+    import json
+
+    import pinocchio as pin
+
+    from tfcontact.cli import main
+    from tfcontact.plan_format import load_trajectory
+    from tfcontact.robot import RobotSpec, load_robot
+
+    assert main(["plan", "biped-walk-short", "--out", str(tmp_path), "--quiet"]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["success"] and summary["status"] == "converged", summary["summary"]
+    stages = {entry["stage"]: entry for entry in summary["stages"]}
+    assert stages["discover"]["ran"] and stages["stance re-solve"]["status"] == "converged"
+    assert stages["collision check"]["status"] == "clear"
+    trajectory = load_trajectory(tmp_path / "trajectory.npz")
+    assert trajectory.verification["passed"]
+    model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
+    data = model.createData()
+    heights = []  # the feet's lowest points above the ground, per sample
+    for q in trajectory.q:
+        pin.framesForwardKinematics(model, data, q)
+        heights.append([data.oMf[model.getFrameId(foot)].translation[2] - 0.016
+                        for foot in ("FL_FOOT", "FR_FOOT")])
+    heights = np.array(heights)
+    assert heights.min() >= -1e-3
+    # each foot starts down and lifts above 5 cm (the task does not ask the feet down at
+    # T: measured, the right foot lifts off again at 0.5 s and is 9 cm up at the end)
+    assert np.all(heights[0] < 1e-3)
+    assert np.all(heights.max(axis=0) > 0.05)
+    assert abs(trajectory.q[-1, 0] - 0.2) <= 0.05
+
+
 def test_a_contacts_reach_bounds_it_in_the_base_frame():
     """`reach`: rows after the no-slip rows holding the foot's position relative to the
     base, in the base's frame, within the box: checked against Pinocchio's placements at

@@ -43,6 +43,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import casadi as ca
@@ -120,6 +121,13 @@ class StanceOptions:
             force v_t = 0 with a vanishing gradient: with it there bolt's one-step walk took
             562 IPOPT iterations, without it 113 (benchmarks/legged.md). Empty: no rows.
             A task's no-slip contacts get their `no_slip_gain` (`StanceResolve`).
+        swing_heights: per contact h [m] or None; a contact with h keeps, in each of its
+            swings (open from a lift-off, or from the start, to its next touchdown or T)
+            in which the guess rises above h, gap >= h at the node where the guess is
+            highest: the re-solve keeps the steps the discovery found instead of trading
+            them for a skim (bolt's reduced walk: the discovery lifted the right foot above
+            5 cm, the re-solve without these rows 2 cm; benchmarks/legged.md). Empty: no
+            rows.
         inverse_dynamics: the stance dynamics in inverse-dynamics form (Radau only; RK4
             needs the explicit a(x, u)): every stage state gets its acceleration a and the
             closed contacts' forces lambda as NLP variables with the rows
@@ -148,6 +156,7 @@ class StanceOptions:
     contact_gap: float = 1e-3
     switch_margin: float = 0.02
     open_slip_gains: tuple[float | None, ...] = ()
+    swing_heights: tuple[float | None, ...] = ()
     inverse_dynamics: bool = False
     tol: float = 1e-8
     max_iter: int = 3000
@@ -188,6 +197,11 @@ class StanceOptions:
                 for k in self.open_slip_gains):
             raise InvalidInput(f"`open_slip_gains` must be a tuple of gains > 0 or None, "
                                f"got {self.open_slip_gains!r}")
+        if not isinstance(self.swing_heights, tuple) or not all(
+                h is None or (isinstance(h, int | float) and not isinstance(h, bool)
+                              and 0 < h < math.inf) for h in self.swing_heights):
+            raise InvalidInput(f"`swing_heights` must be a tuple of heights > 0 [m] or None, "
+                               f"got {self.swing_heights!r}")
         for name in ("baumgarte", "tol", "end_state_tolerance", "gap_tolerance",
                      "cone_tolerance"):
             if not getattr(self, name) > 0:
@@ -271,6 +285,22 @@ def stance_schedule(t: np.ndarray, gaps: np.ndarray, horizon: float, n_intervals
         stances[-1] = Stance(stances[-1].closed, stances[-1].start, at)
         stances.append(Stance(closed, at, horizon))
     return tuple(stances)
+
+
+def swings(stances: Sequence[Stance], contact: int, horizon: float
+           ) -> list[tuple[float, float]]:
+    """The (begin, end) times [s] in which `contact` is open: from a lift-off (or the
+    start) to its next touchdown (or the horizon)."""
+    found, begin = [], None
+    for s in stances:
+        if contact in s.closed and begin is not None:
+            found.append((begin, s.start))
+            begin = None
+        elif contact not in s.closed and begin is None:
+            begin = s.start
+    if begin is not None:
+        found.append((begin, horizon))
+    return found
 
 
 def schedule_of(result: ContactResult, options: StanceOptions | None = None
@@ -571,9 +601,11 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     lower, upper = functions.lower, functions.upper
     bounded = [int(i) for i in np.flatnonzero(np.isfinite(lower) | np.isfinite(upper))]
     gains = options.open_slip_gains or (None,) * cls.n_contacts
-    if len(gains) != cls.n_contacts:
-        raise InvalidInput(f"`open_slip_gains` has {len(gains)} entries for "
-                           f"{cls.n_contacts} contacts")
+    heights = options.swing_heights or (None,) * cls.n_contacts
+    for name, given in (("open_slip_gains", gains), ("swing_heights", heights)):
+        if len(given) != cls.n_contacts:
+            raise InvalidInput(f"`{name}` has {len(given)} entries for {cls.n_contacts} "
+                               "contacts")
 
     opti = ca.Opti()
     controls = opti.variable(n_int, n_u) if n_u else ca.MX(n_int, 0)
@@ -736,6 +768,19 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
             current = jb
             constrain_node(x, tb, u_k, after)
         boundary.append(x)
+    if any(h is not None for h in heights):
+        node_t = np.array([float(opti.value(tn, opti.initial())) if isinstance(tn, ca.MX)
+                           else float(tn) for tn, _ in nodes])
+        guess_q = np.array([interpolate(guess_t, guess_x, at)[:n_q] for at in node_t])
+        guess_gaps = np.asarray(cls.function("gaps")(guess_q.T)).T.reshape(len(node_t), -1)
+        for i, h in enumerate(heights):
+            if h is None:
+                continue
+            for begin, end in swings(stances, i, horizon):
+                inside = np.flatnonzero((node_t > begin) & (node_t < end))
+                if inside.size and guess_gaps[inside, i].max() >= h:
+                    highest = inside[np.argmax(guess_gaps[inside, i])]
+                    opti.subject_to(dyn.gaps(nodes[highest][1])[i] >= h)
     y_end = y_of(x, horizon)
     if terminal_fn is not None:
         size = terminal.expression.shape[0]

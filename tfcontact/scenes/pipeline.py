@@ -25,6 +25,7 @@ import numpy as np
 
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp.chain import ChainStep, ResolveChain, ResolveLevel, resolve_chain
+from tfcontact.ocp.goals import Goal, LiftOffs
 from tfcontact.ocp.polish import Phase, PolishedPlan, PolishOptions, contact_phases
 from tfcontact.ocp.stances import StanceOptions, resolve_stances, schedule_of
 
@@ -317,6 +318,23 @@ def resolved_outcome(chain: ResolveChain, setup: PlanSetup, found: PlanOutcome |
                        summary, task=task.to_dict(), setup=setup, chain=chain)
 
 
+LIFT_OFF_MARGIN = 1e-3
+"""[m] above a lift-off goal's height for the stance re-solve's swing rows, so that the
+goal's check at the plan's nodes (gap >= height) holds after IPOPT's bound relaxation."""
+
+
+def lift_off_heights(goals: Sequence[Goal], n_contacts: int) -> tuple[float | None, ...]:
+    """`StanceOptions.swing_heights` from a problem's lift-off goals: each contact asked
+    to lift off keeps its goal's height (plus `LIFT_OFF_MARGIN`) in the swings the
+    discovery lifted it that high; the other contacts None."""
+    heights: list[float | None] = [None] * n_contacts
+    for goal in goals:
+        if isinstance(goal, LiftOffs):
+            heights[goal.contact] = max(heights[goal.contact] or 0.0,
+                                        goal.height + LIFT_OFF_MARGIN)
+    return tuple(heights) if any(h is not None for h in heights) else ()
+
+
 @dataclass(frozen=True)
 class StanceResolve(Stage):
     """Re-solve the discovery's plan exactly along the stances it found
@@ -361,9 +379,12 @@ class StanceResolve(Stage):
                   + ", ".join(f"{list(s.closed)} from {s.start:.3f} s" for s in stances),
                   flush=True)
         problem = setup.problem
+        cls = problem.system.cls
+        if not options.swing_heights:
+            options = dataclasses.replace(
+                options, swing_heights=lift_off_heights(problem.goals, cls.n_contacts))
         solved = problem if self.keep_path else dataclasses.replace(problem, path=None)
         plan = resolve_stances(solved, stances, options, guess=result, verbose=given.verbose)
-        cls = problem.system.cls
         gaps = np.asarray(cls.function("gaps")(plan.x[:, :cls.n_q].T)).T
         task = check_goals(problem.goals, Motion(t=plan.t, q=plan.x[:, :cls.n_q],
                                                  gaps=gaps.reshape(len(plan.t), -1),
