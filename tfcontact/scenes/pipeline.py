@@ -343,7 +343,8 @@ class StanceResolve(Stage):
     multi-contact reference, the goals checked at its nodes.
 
     Args:
-        options: `StanceOptions` (default: its defaults).
+        options: `StanceOptions` (default: its defaults); without `swing_heights` the
+            problem's lift-off goals give them (`lift_off_heights`).
         keep_path: keep the problem's path constraints. A task file's are its contacts'
             no-slip rows (v_t^2 <= k gap, `tfcontact.task`), which the discovery needs and
             every stance meets by construction (its closed contacts stick): kept, they
