@@ -161,6 +161,19 @@ def test_constraint_bounds_default_to_equality_or_one_sided():
         Constraint(x, upper=[1.0, 2.0, 3.0])
 
 
+def test_a_constraints_rows_keep_their_bounds():
+    x = ca.SX.sym("x", 3)
+    both = Constraint(2 * x, lower=[0.0, -1.0, -2.0], upper=[1.0, 2.0, 3.0])
+    kept = both.rows([2, 0])
+    value = ca.Function("kept", [x], [kept.expression])([1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(np.asarray(value).ravel(), [6.0, 2.0])
+    np.testing.assert_array_equal(kept.lower, [-2.0, 0.0])
+    np.testing.assert_array_equal(kept.upper, [3.0, 1.0])
+    assert both.rows([]) is None
+    with pytest.raises(InvalidInput, match=r"row indices \[3\] outside the constraint's 3"):
+        both.rows([3])
+
+
 def test_trajectory_guess_is_interpolated_with_consistent_algebraic_variables():
     prob = min_energy_problem(x_guess=np.array([[-1.0], [0.5], [1.0], [2.0], [3.0]]),
                               u_guess=[1.0, 2.0, 2.0, 2.0])

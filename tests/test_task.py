@@ -17,6 +17,7 @@ from tfcontact.task import (
     Task,
     build_task,
     load_task,
+    resolve_path_rows,
     shipped_tasks,
     task_from_dict,
 )
@@ -113,6 +114,10 @@ def _edited(task_file: Path, old: str, new: str) -> Path:
      r"`contacts\[toe\].reach.x` must have low < high"),
     ("no_slip = true", "no_slip = true\nreach = { x = 0.1 }",
      r"`contacts\[toe\].reach.x` must be \[low, high\]"),
+    ("no_slip = true", "no_slip = true\nclearance = 0.0",
+     r"`contacts\[toe\].clearance` must be finite > 0"),
+    ("no_slip = true", "no_slip = true\nclearance = 0.05\nclearance_speed = -0.3",
+     r"`contacts\[toe\].clearance_speed` must be finite > 0"),
 ])
 def test_task_file_errors_name_the_field(task_file, old, new, message):
     path = _edited(task_file, old, new)
@@ -367,7 +372,8 @@ def test_biped_walk_short_steps_once_per_foot_verified_and_clear(tmp_path):
     foot, no period; measured about 45 s): from the start-everywhere guess the discovery
     finds a step per foot, the stance re-solve along its stances makes the plan, which
     passes the multi-contact reference, does its task and is clear of the ground. The
-    feet's lift-offs and the base's end are checked here on Pinocchio's foot placements."""
+    feet's lift-offs, their reach and the base's end are checked here on Pinocchio's foot
+    placements."""
     import json
 
     import pinocchio as pin
@@ -386,15 +392,21 @@ def test_biped_walk_short_steps_once_per_foot_verified_and_clear(tmp_path):
     assert trajectory.verification["passed"]
     model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
     data = model.createData()
-    heights = []  # the feet's lowest points above the ground, per sample
-    for q in trajectory.q:
+    heights, offsets = [], []  # the feet's lowest points above the ground; their x in
+    for q in trajectory.q:     # the base's frame, per sample
         pin.framesForwardKinematics(model, data, q)
-        heights.append([data.oMf[model.getFrameId(foot)].translation[2] - 0.016
-                        for foot in ("FL_FOOT", "FR_FOOT")])
+        base = data.oMf[model.getFrameId("root_joint")]
+        feet = [data.oMf[model.getFrameId(foot)].translation for foot in ("FL_FOOT",
+                                                                          "FR_FOOT")]
+        heights.append([foot[2] - 0.016 for foot in feet])
+        offsets.append([base.actInv(foot)[0] for foot in feet])
     heights = np.array(heights)
+    # the re-solve keeps each foot's reach (12 cm about the base): without those rows a
+    # re-solved foot went 27 cm from the base (a start 3.8 cm ahead)
+    assert np.abs(offsets).max() <= 0.12 + 2e-3
     assert heights.min() >= -1e-3
     # each foot starts down and lifts above 5 cm (the task does not ask the feet down at
-    # T: measured, the right foot lifts off again at 0.5 s and is 9 cm up at the end)
+    # T: measured, the right foot lifts off again at 0.5 s and is in the air at T)
     assert np.all(heights[0] < 1e-3)
     assert np.all(heights.max(axis=0) > 0.05)
     assert abs(trajectory.q[-1, 0] - 0.2) <= 0.05
@@ -416,6 +428,11 @@ def test_a_contacts_reach_bounds_it_in_the_base_frame():
     path, cls = setup.problem.path, setup.problem.system.cls
     np.testing.assert_array_equal(path.lower, [-np.inf, -np.inf, -0.12, -0.4, -0.1])
     np.testing.assert_array_equal(path.upper, [0.0, 0.0, 0.12, -0.2, 0.15])
+    # the stance re-solve keeps the reach rows and drops the no-slip rows
+    task = dataclasses.replace(task, contacts=contacts)
+    assert resolve_path_rows(task) == (2, 3, 4)
+    kept = path.rows(resolve_path_rows(task))
+    np.testing.assert_array_equal(kept.upper, [0.12, -0.2, 0.15])
     rows = ca.Function("rows", [cls.q], [path.expression[2:]])
     model, data = setup.robot.model, setup.robot.data
     rng = np.random.default_rng(3)
@@ -430,6 +447,46 @@ def test_a_contacts_reach_bounds_it_in_the_base_frame():
     # the base's frame, not the world's: at this pitch the two differ by centimetres
     world = data.oMf[model.getFrameId("FL_FOOT")].translation - base.translation
     assert abs(world[0] - offsets[0][0]) > 0.01
+
+
+def test_a_contacts_clearance_lifts_it_as_it_moves():
+    """`clearance`: the row h v_t^2 - gap (v_t^2 + c^2) <= 0 after the contact's no-slip
+    row, with the foot's height and forward speed from Pinocchio's placements and
+    velocities at random states of bolt's planar base; the row holds exactly where the
+    gap is at least h v_t^2 / (v_t^2 + c^2)."""
+    import dataclasses
+
+    import pinocchio as pin
+
+    task = load_task(shipped_tasks()["biped-walk-short"])
+    height, speed = 0.05, 0.3
+    contacts = (dataclasses.replace(task.contacts[0], clearance=height,
+                                    clearance_speed=speed), task.contacts[1])
+    setup = build_task(dataclasses.replace(task, contacts=contacts))
+    path, cls = setup.problem.path, setup.problem.system.cls
+    # rows: no-slip 0, clearance 0, no-slip 1, then the two reach rows (the re-solve's)
+    assert resolve_path_rows(dataclasses.replace(task, contacts=contacts)) == (3, 4)
+    np.testing.assert_array_equal(path.upper[:3], [0.0, 0.0, 0.0])
+    assert path.expression.shape[0] == 5
+    row = ca.Function("row", [cls.q, cls.v], [path.expression[1]])
+    model, data = setup.robot.model, setup.robot.data
+    foot = model.getFrameId("FL_FOOT")
+    rng = np.random.default_rng(5)
+    held = []
+    for _ in range(8):
+        q = rng.uniform(-1.0, 1.0, cls.n_q) + np.array([0, 0.3, 0, 0.8, -1.6, 0.8, -1.6])
+        v = rng.uniform(-1.0, 1.0, cls.n_q)
+        pin.forwardKinematics(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        gap = data.oMf[foot].translation[2] - contacts[0].radius
+        forward = pin.getFrameVelocity(model, data, foot,
+                                       pin.LOCAL_WORLD_ALIGNED).linear[0]
+        value = float(row(q, v))
+        expected = height * forward ** 2 - gap * (forward ** 2 + speed ** 2)
+        assert value == pytest.approx(expected, abs=1e-12)
+        held.append(value <= 0)
+        assert held[-1] == (gap >= height * forward ** 2 / (forward ** 2 + speed ** 2))
+    assert any(held) and not all(held)
 
 
 def test_validation_of_the_dataclasses():

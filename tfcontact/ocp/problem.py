@@ -15,7 +15,7 @@ control.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -77,6 +77,16 @@ class Constraint:
     @property
     def size(self) -> int:
         return self.expression.numel()
+
+    def rows(self, indices: Sequence[int]) -> Constraint | None:
+        """These rows only, in the order given (None when `indices` is empty)."""
+        indices = list(indices)
+        if any(not 0 <= i < self.size for i in indices):
+            raise InvalidInput(f"row indices {indices} outside the constraint's {self.size} "
+                               "rows")
+        if not indices:
+            return None
+        return Constraint(self.expression[indices], self.lower[indices], self.upper[indices])
 
 
 BoundaryHook = Callable[[int, ca.SX], Constraint | None]

@@ -345,15 +345,17 @@ class StanceResolve(Stage):
     Args:
         options: `StanceOptions` (default: its defaults); without `swing_heights` the
             problem's lift-off goals give them (`lift_off_heights`).
-        keep_path: keep the problem's path constraints. A task file's are its contacts'
-            no-slip rows (v_t^2 <= k gap, `tfcontact.task`), which the discovery needs and
-            every stance meets by construction (its closed contacts stick): kept, they
-            made a two-legged step's re-solve wander for more than 2000 IPOPT iterations
-            (about 270 without, benchmarks/legged.md).
+        path_rows: the rows of the problem's path constraint the re-solve keeps (None:
+            all; (): none). A task file keeps its contacts' reach rows, a leg's range of
+            motion (`tfcontact.task.resolve_path_rows`), and drops the rows that steer the
+            discovery: no-slip (v_t^2 <= k gap), which every stance meets by construction
+            (its closed contacts stick) and which, kept, made a two-legged step's re-solve
+            wander for more than 2000 IPOPT iterations (about 270 without,
+            benchmarks/legged.md), and clearance.
     """
 
     options: StanceOptions | None = None
-    keep_path: bool = True
+    path_rows: tuple[int, ...] | None = None
     name: str = "stance re-solve"
     tasks: tuple[str, ...] | None = None
 
@@ -384,7 +386,8 @@ class StanceResolve(Stage):
         if not options.swing_heights:
             options = dataclasses.replace(
                 options, swing_heights=lift_off_heights(problem.goals, cls.n_contacts))
-        solved = problem if self.keep_path else dataclasses.replace(problem, path=None)
+        solved = problem if self.path_rows is None or problem.path is None else (
+            dataclasses.replace(problem, path=problem.path.rows(self.path_rows)))
         plan = resolve_stances(solved, stances, options, guess=result, verbose=given.verbose)
         gaps = np.asarray(cls.function("gaps")(plan.x[:, :cls.n_q].T)).T
         task = check_goals(problem.goals, Motion(t=plan.t, q=plan.x[:, :cls.n_q],

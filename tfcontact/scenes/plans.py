@@ -98,7 +98,7 @@ def task_plan(source: str | Path) -> Plan:
     Raises:
         InvalidInput: no such task, or a bad field in it (named).
     """
-    from tfcontact.task import build_task, load_task, shipped_tasks
+    from tfcontact.task import build_task, load_task, resolve_path_rows, shipped_tasks
 
     shipped = shipped_tasks()
     path = shipped.get(str(source), Path(source))
@@ -116,12 +116,13 @@ def task_plan(source: str | Path) -> Plan:
                          start_ranges=dict(data.start_ranges) or None)
 
     # one contact: its sequence with slip phases (`polish`); several: the stances found,
-    # where the task's path rows (its no-slip rows: `build_task`) hold by construction
-    # (an open no-slip contact keeps v_t^2 <= K gap: it does not skim the ground)
+    # where the no-slip rows hold by construction (an open no-slip contact keeps
+    # v_t^2 <= K gap: it does not skim the ground) and the reach rows are kept
     gains = tuple(c.no_slip_gain if c.no_slip else None for c in data.contacts)
     resolve = (ExactResolve() if len(data.contacts) == 1 else StanceResolve(
         StanceOptions(open_slip_gains=gains,
-                      nodes=data.resolve_elements or StanceOptions.nodes), keep_path=False))
+                      nodes=data.resolve_elements or StanceOptions.nodes),
+        path_rows=resolve_path_rows(data)))
     stages = (Discover(build), resolve) if data.exact_resolve else (Discover(build),)
     return Plan(name=data.name, summary=data.description or f"task file {path}",
                 tasks=("task",), stages=stages)

@@ -10,6 +10,7 @@ from tfcontact.task.build import (
     build_task,
     contact_reach,
     coordinate_names,
+    resolve_path_rows,
     task_region,
 )
 from tfcontact.task.files import (
@@ -49,6 +50,7 @@ __all__ = [
     "coordinate_names",
     "load_task",
     "plan",
+    "resolve_path_rows",
     "shipped_tasks",
     "task_from_dict",
     "task_region",

@@ -139,10 +139,10 @@ def build_task(task: Task) -> TaskSetup:
 
     lower, upper = _state_bounds(task, robot, state_names)
     u_bound = _effort(task, robot, actuated)
-    # A task's path rows are its contacts' no-slip and reach rows only, both steering the
-    # discovery: the stance re-solve of several contacts drops them
-    # (`StanceResolve(keep_path=False)`, where every closed contact sticks and the
-    # stances found are kept); a new kind of path row must change that.
+    # A task's path rows are its contacts' no-slip and clearance rows, which steer the
+    # discovery (the stance re-solve of several contacts drops them: every closed contact
+    # sticks there and the stances found are kept), then their reach rows, which it keeps
+    # (`resolve_path_rows`: a new kind of path row must update it).
     path = None
     rows, row_upper, row_lower = [], [], []
     for c, entry in zip(cls.contacts, task.contacts, strict=True):
@@ -153,6 +153,12 @@ def build_task(task: Task) -> TaskSetup:
                                    "a slide)")
             slip = ca.mtimes(c.tangents.T, cls.v)
             rows.append(ca.sumsqr(slip) - entry.no_slip_gain * c.gap)
+            row_lower.append(-np.inf)
+            row_upper.append(0.0)
+        if entry.clearance is not None:  # h v_t^2 <= gap (v_t^2 + c^2), smooth at v_t = 0
+            speed2 = ca.sumsqr(ca.mtimes(c.tangents.T, cls.v))
+            rows.append(entry.clearance * speed2
+                        - c.gap * (speed2 + entry.clearance_speed ** 2))
             row_lower.append(-np.inf)
             row_upper.append(0.0)
     base = "root_joint" if robot.model.existFrame("root_joint") else "universe"
@@ -216,6 +222,14 @@ def build_task(task: Task) -> TaskSetup:
             options.nlp, options={**options.nlp.options, "mu_strategy": task.barrier}))
     scene = {"terrain": task.terrain.to_dict()}
     return TaskSetup(task, robot, problem, options, scene, ground)
+
+
+def resolve_path_rows(task: Task) -> tuple[int, ...]:
+    """The rows of `build_task(task).problem.path` that a stance re-solve keeps
+    (`StanceResolve.path_rows`): the contacts' reach rows, a leg's range of motion. The
+    rows before them (no-slip, clearance) steer the discovery only."""
+    steering = sum(int(c.no_slip) + int(c.clearance is not None) for c in task.contacts)
+    return tuple(range(steering, steering + sum(len(c.reach) for c in task.contacts)))
 
 
 def contact_reach(robot: Any, frame: str) -> float:

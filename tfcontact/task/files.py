@@ -73,6 +73,7 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "period", "period_from", "barrier", "resolve_elements", "start_ranges"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
+            "clearance", "clearance_speed",
             "eps_t", "reach"}
 _TERRAIN = {"height", "normal"}
 _PRIMITIVE_TERRAIN = {"primitives", "smoothing", "region"}

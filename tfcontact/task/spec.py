@@ -118,9 +118,19 @@ class ContactEntry:
         reach: the box the contact's centre keeps to relative to the base, {axis: [low,
             high]} [m] with axis x, y or z of the base's frame (a fixed base's: the
             world's), at every stage of the discovery: a leg's range of motion. It bounds
-            the step length, so a walk must step more often to cover its distance. Like
-            `no_slip`, it steers the discovery: the stance re-solve of several contacts
-            keeps the stances found and drops these rows (`StanceResolve`).
+            the step length, so a walk must step more often to cover its distance. The
+            stance re-solve of several contacts keeps these rows too
+            (`resolve_path_rows`): without them its feet left the box, a foot 20 cm
+            ahead of the base at T (benchmarks/legged.md).
+        clearance: h [m] or None: a foot moving along the ground must be up, gap >=
+            h v_t^2 / (v_t^2 + c^2) with c = `clearance_speed` (a row at every stage of
+            the discovery): standing (v_t = 0) it may touch, moving at c it is h / 2 up,
+            at 3 c 0.9 h. The no-slip row lets a foot shuffle (1 cm at 1 m/s); with this
+            one a step lifts the foot, so a lift-off goal of height h is met by the
+            discovery's steps rather than hoped for. Near the ground it acts as a no-slip
+            gain of c^2 / h (the foot lands and lifts almost vertically). Like `reach`,
+            it steers the discovery only (benchmarks/legged.md).
+        clearance_speed: c [m/s].
     """
 
     frame: str
@@ -131,6 +141,8 @@ class ContactEntry:
     no_slip_gain: float = 100.0
     eps_t: float = 1e-3
     reach: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    clearance: float | None = None
+    clearance_speed: float = 0.3
 
     def __post_init__(self) -> None:
         if not isinstance(self.frame, str) or not self.frame:
@@ -152,6 +164,12 @@ class ContactEntry:
             self.no_slip_gain, f"{where}.no_slip_gain", low=0.0, strict=True, unit="m/s^2"))
         object.__setattr__(self, "eps_t", finite(self.eps_t, f"{where}.eps_t", low=0.0,
                                                  strict=True, unit="m/s"))
+        if self.clearance is not None:
+            object.__setattr__(self, "clearance", finite(
+                self.clearance, f"{where}.clearance", low=0.0, strict=True, unit="m"))
+        object.__setattr__(self, "clearance_speed", finite(
+            self.clearance_speed, f"{where}.clearance_speed", low=0.0, strict=True,
+            unit="m/s"))
         reach = _ranges(self.reach, f"{where}.reach")
         unknown = sorted(set(reach) - {"x", "y", "z"})
         if unknown:
