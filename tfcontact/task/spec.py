@@ -126,10 +126,11 @@ class ContactEntry:
             h v_t^2 / (v_t^2 + c^2) with c = `clearance_speed` (a row at every stage of
             the discovery): standing (v_t = 0) it may touch, moving at c it is h / 2 up,
             at 3 c 0.9 h. The no-slip row lets a foot shuffle (1 cm at 1 m/s); with this
-            one a step lifts the foot, so a lift-off goal of height h is met by the
-            discovery's steps rather than hoped for. Near the ground it acts as a no-slip
-            gain of c^2 / h (the foot lands and lifts almost vertically). Like `reach`,
-            it steers the discovery only (benchmarks/legged.md).
+            one a stepping foot rises near h. Near the ground it acts as a no-slip gain
+            of c^2 / h (the foot lands and lifts almost vertically). Like `no_slip`, it
+            steers the discovery only. On bolt's short walk it removed all but one of
+            the sweep's lift-height failures but gained no plan: more of its discoveries
+            began with a hop whose re-solve was infeasible (benchmarks/legged.md).
         clearance_speed: c [m/s].
     """
 
