@@ -268,6 +268,38 @@ def test_a_swing_keeps_the_height_its_guess_reached(height):
         assert plan.x[:, 3].max() < 0.02
 
 
+@pytest.mark.parametrize("fallback", [True, False])
+def test_an_unreachable_swing_height_is_dropped_when_it_makes_the_nlp_infeasible(fallback):
+    """The swing of the test above with the lifting force capped at 22 N (mass 2 kg: at
+    most 1.19 m/s^2 up, 2.4 cm in the 0.2 s of the swing): the guess rises to 0.1 m, but
+    the mass cannot reach 5 cm, so the row makes
+    the NLP infeasible (IPOPT says so). With `swing_fallback` the NLP is solved again
+    without the row: solved, the row's dropping recorded, the iterations of both solves
+    counted, the mass below 5 cm."""
+    p = problem([0.0, 0.0, 1.0, 0.0], [0.0] * 4, horizon=0.4, n_intervals=4,
+                u_lower=[0.0, 0.0, 0.0, 0.0], u_upper=[0.0, 0.0, 0.0, 22.0],
+                running=lambda tf: 1e-2 * tf.u[3] ** 2)
+    t = np.linspace(0.0, 0.4, 41)
+    x = np.zeros((len(t), 8))
+    x[:, 2] = 1.0
+    x[:, 3] = np.where(t > 0.2, 0.5 * (t - 0.2), 0.0)
+    stances = (Stance((0, 1), 0.0, 0.2), Stance((0,), 0.2, 0.4))
+    guess = (t, x, np.zeros((4, 4)))
+    options = StanceOptions(tol=1e-10, swing_heights=(None, 0.05), swing_fallback=fallback)
+    plan = resolve_stances(p, stances, options, guess=guess, verbose=False)
+    if not fallback:
+        assert plan.ipopt_status == "Infeasible_Problem_Detected"
+        assert not plan.swing_rows_dropped
+        return
+    assert plan.solved and plan.swing_rows_dropped, plan.ipopt_status
+    assert "swing-height rows made the NLP infeasible" in plan.summary()
+    without = resolve_stances(p, stances, StanceOptions(tol=1e-10), guess=guess,
+                              verbose=False)
+    assert plan.iterations > without.iterations
+    np.testing.assert_allclose(plan.x, without.x, atol=1e-9)
+    assert plan.x[:, 3].max() < 0.05
+
+
 def test_swings_run_from_a_lift_off_or_the_start_to_the_next_touchdown_or_the_end():
     walk = (Stance((0, 1), 0.0, 0.1), Stance((1,), 0.1, 0.2), Stance((0, 1), 0.2, 0.3),
             Stance((1,), 0.3, 0.4))
@@ -280,6 +312,8 @@ def test_swings_run_from_a_lift_off_or_the_start_to_the_next_touchdown_or_the_en
 def test_swing_heights_must_be_positive_and_finite(heights):
     with pytest.raises(InvalidInput, match="swing_heights"):
         StanceOptions(swing_heights=heights)
+    with pytest.raises(InvalidInput, match="`swing_fallback` must be True or False"):
+        StanceOptions(swing_fallback=1)
 
 
 def test_slip_gains_must_be_positive():

@@ -40,6 +40,7 @@ frictional planar contact with slip phases is `tfcontact.ocp.polish`.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import time
@@ -75,6 +76,7 @@ from tfcontact.verify import (
 )
 
 SOLVED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+INFEASIBLE = "Infeasible_Problem_Detected"
 RESTART_VELOCITY_TOLERANCE = 1e-6
 """The multi-contact reference's velocity tolerance [m/s] for a stance plan: a contact
 velocity this small counts as zero at a mode change (and is projected to zero). A closed
@@ -128,6 +130,12 @@ class StanceOptions:
             them for a skim (bolt's reduced walk: the discovery lifted the right foot above
             5 cm, the re-solve without these rows 2 cm; benchmarks/legged.md). Empty: no
             rows.
+        swing_fallback: when IPOPT finds the NLP with swing-height rows locally
+            infeasible, solve it once more without them (`StancePlan.swing_rows_dropped`;
+            the task's goals then decide). The rows ask of the exact plan what a relaxed
+            guess did, which its hop can leave out of reach: bolt's short walk from a
+            perturbed start, infeasible with them, was verified and did its task without
+            (benchmarks/legged.md).
         inverse_dynamics: the stance dynamics in inverse-dynamics form (Radau only; RK4
             needs the explicit a(x, u)): every stage state gets its acceleration a and the
             closed contacts' forces lambda as NLP variables with the rows
@@ -157,6 +165,7 @@ class StanceOptions:
     switch_margin: float = 0.02
     open_slip_gains: tuple[float | None, ...] = ()
     swing_heights: tuple[float | None, ...] = ()
+    swing_fallback: bool = True
     inverse_dynamics: bool = False
     tol: float = 1e-8
     max_iter: int = 3000
@@ -170,6 +179,9 @@ class StanceOptions:
     def __post_init__(self) -> None:
         if self.integrator not in ("rk4", "radau"):
             raise InvalidInput(f"`integrator` must be 'rk4' or 'radau', got {self.integrator!r}")
+        if not isinstance(self.swing_fallback, bool):
+            raise InvalidInput(f"`swing_fallback` must be True or False, got "
+                               f"{self.swing_fallback!r}")
         if not isinstance(self.inverse_dynamics, bool):
             raise InvalidInput(f"`inverse_dynamics` must be True or False, got "
                                f"{self.inverse_dynamics!r}")
@@ -496,6 +508,9 @@ class StancePlan:
             jumps, (N + 1, 2 n_q).
         cost, ipopt_status, iterations, solve_time (build and solve [s]),
         verification: the multi-contact reference's checks.
+        swing_rows_dropped: the swing-height rows made the NLP infeasible and this plan
+            was solved without them (`StanceOptions.swing_fallback`); iterations and
+            solve_time count both solves.
     """
 
     stances: tuple[Stance, ...]
@@ -508,6 +523,7 @@ class StancePlan:
     iterations: int
     solve_time: float
     verification: Verification
+    swing_rows_dropped: bool = False
 
     @property
     def solved(self) -> bool:
@@ -530,6 +546,8 @@ class StancePlan:
             f"stances: {self.status} (IPOPT {self.ipopt_status}, {self.iterations} "
             f"iterations, {self.solve_time:.1f} s), objective {self.cost:.6g}",
             f"stances: closed contacts {stances}",
+            *(["stances: the swing-height rows made the NLP infeasible; solved without "
+               "them"] if self.swing_rows_dropped else []),
             f"stances: {self.verification.summary()}",
         ])
 
@@ -812,6 +830,18 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
         opti.set_initial(opti.lam_g, sol.value(opti.lam_g))
         ipopt.update(warm_start_init_point="yes", mu_init=RESTART_PUSH,
                      warm_start_bound_push=RESTART_PUSH, warm_start_mult_bound_push=RESTART_PUSH)
+    if (status == INFEASIBLE and options.swing_fallback
+            and any(h is not None for h in heights)):
+        first = time.perf_counter() - start
+        if verbose:
+            print("stances: the swing-height rows made the NLP infeasible; solving it "
+                  "again without them", flush=True)
+        again = resolve_stances(problem, stances, dataclasses.replace(options,
+                                                                      swing_heights=()),
+                                guess=guess, verbose=verbose)
+        return dataclasses.replace(again, swing_rows_dropped=True,
+                                   iterations=again.iterations + iterations,
+                                   solve_time=again.solve_time + first)
     u_value = (np.asarray(sol.value(controls)).reshape(n_int, n_u) if n_u
                else np.zeros((n_int, 0)))
     node_x = np.array([np.asarray(sol.value(xn)).ravel() for _, xn in nodes])
