@@ -239,6 +239,20 @@ def test_an_open_contact_with_a_slip_gain_flies_within_it_and_lands_at_its_speed
     assert plan.verification.passed, plan.verification.summary()
 
 
+def lifting_mass(force: float):
+    """Mass 2 rests, lifts off at the control jump 0.2 s and is open to T = 0.4 s, lifted
+    by at most `force` [N] at the least squared force; the guess rises 0.5 m/s from 0.2 s
+    (0.1 m at T): the problem, its stances and the guess."""
+    p = problem([0.0, 0.0, 1.0, 0.0], [0.0] * 4, horizon=0.4, n_intervals=4,
+                u_lower=[0.0, 0.0, 0.0, 0.0], u_upper=[0.0, 0.0, 0.0, force],
+                running=lambda tf: 1e-2 * tf.u[3] ** 2)
+    t = np.linspace(0.0, 0.4, 41)
+    x = np.zeros((len(t), 8))
+    x[:, 2] = 1.0
+    x[:, 3] = np.where(t > 0.2, 0.5 * (t - 0.2), 0.0)
+    return p, (Stance((0, 1), 0.0, 0.2), Stance((0,), 0.2, 0.4)), (t, x, np.zeros((4, 4)))
+
+
 @pytest.mark.parametrize("height", [None, 0.05, 0.5])
 def test_a_swing_keeps_the_height_its_guess_reached(height):
     """`swing_heights`: mass 2 rests, lifts off at the control jump 0.2 s and is open to T;
@@ -246,14 +260,7 @@ def test_a_swing_keeps_the_height_its_guess_reached(height):
     ground (measured: 1.3 cm, back to the ground at T). The guess rises to 0.1 m: with
     h = 0.05 the node where the guess is highest keeps gap >= h; h = 0.5 lies above the
     guess's swing, so no row is added and the plan is the one without rows."""
-    p = problem([0.0, 0.0, 1.0, 0.0], [0.0] * 4, horizon=0.4, n_intervals=4,
-                u_lower=[0.0, 0.0, 0.0, 0.0], u_upper=[0.0, 0.0, 0.0, 40.0],
-                running=lambda tf: 1e-2 * tf.u[3] ** 2)
-    t = np.linspace(0.0, 0.4, 41)
-    x = np.zeros((len(t), 8))
-    x[:, 2] = 1.0
-    x[:, 3] = np.where(t > 0.2, 0.5 * (t - 0.2), 0.0)
-    stances = (Stance((0, 1), 0.0, 0.2), Stance((0,), 0.2, 0.4))
+    p, stances, (t, x, _) = lifting_mass(40.0)
     plan = resolve_stances(p, stances, StanceOptions(tol=1e-10, swing_heights=(None, height)),
                            guess=(t, x, np.zeros((4, 4))), verbose=False)
     assert plan.solved, plan.ipopt_status
@@ -276,14 +283,7 @@ def test_an_unreachable_swing_height_is_dropped_when_it_makes_the_nlp_infeasible
     the NLP infeasible (IPOPT says so). With `swing_fallback` the NLP is solved again
     without the row: solved, the row's dropping recorded, the iterations of both solves
     counted, the mass below 5 cm."""
-    p = problem([0.0, 0.0, 1.0, 0.0], [0.0] * 4, horizon=0.4, n_intervals=4,
-                u_lower=[0.0, 0.0, 0.0, 0.0], u_upper=[0.0, 0.0, 0.0, 22.0],
-                running=lambda tf: 1e-2 * tf.u[3] ** 2)
-    t = np.linspace(0.0, 0.4, 41)
-    x = np.zeros((len(t), 8))
-    x[:, 2] = 1.0
-    x[:, 3] = np.where(t > 0.2, 0.5 * (t - 0.2), 0.0)
-    stances = (Stance((0, 1), 0.0, 0.2), Stance((0,), 0.2, 0.4))
+    p, stances, (t, x, _) = lifting_mass(22.0)
     guess = (t, x, np.zeros((4, 4)))
     options = StanceOptions(tol=1e-10, swing_heights=(None, 0.05), swing_fallback=fallback)
     plan = resolve_stances(p, stances, options, guess=guess, verbose=False)
