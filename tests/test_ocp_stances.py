@@ -260,9 +260,10 @@ def test_a_swing_keeps_the_height_its_guess_reached(height):
     ground (measured: 1.3 cm, back to the ground at T). The guess rises to 0.1 m: with
     h = 0.05 the node where the guess is highest keeps gap >= h; h = 0.5 lies above the
     guess's swing, so no row is added and the plan is the one without rows."""
-    p, stances, (t, x, _) = lifting_mass(40.0)
+    p, stances, guess = lifting_mass(40.0)
+    t, x, _ = guess
     plan = resolve_stances(p, stances, StanceOptions(tol=1e-10, swing_heights=(None, height)),
-                           guess=(t, x, np.zeros((4, 4))), verbose=False)
+                           guess=guess, verbose=False)
     assert plan.solved, plan.ipopt_status
     swing = (plan.t > 0.2) & (plan.t < 0.4)
     guess_highest = np.argmax(np.interp(plan.t[swing], t, x[:, 3]))
@@ -279,12 +280,10 @@ def test_a_swing_keeps_the_height_its_guess_reached(height):
 def test_an_unreachable_swing_height_is_dropped_when_it_makes_the_nlp_infeasible(fallback):
     """The swing of the test above with the lifting force capped at 22 N (mass 2 kg: at
     most 1.19 m/s^2 up, 2.4 cm in the 0.2 s of the swing): the guess rises to 0.1 m, but
-    the mass cannot reach 5 cm, so the row makes
-    the NLP infeasible (IPOPT says so). With `swing_fallback` the NLP is solved again
-    without the row: solved, the row's dropping recorded, the iterations of both solves
-    counted, the mass below 5 cm."""
-    p, stances, (t, x, _) = lifting_mass(22.0)
-    guess = (t, x, np.zeros((4, 4)))
+    the mass cannot reach 5 cm, so the row makes the NLP infeasible (IPOPT says so). With
+    `swing_fallback` the NLP is solved again without the row: solved, the row's dropping
+    recorded, the iterations of both solves counted, the mass below 5 cm."""
+    p, stances, guess = lifting_mass(22.0)
     options = StanceOptions(tol=1e-10, swing_heights=(None, 0.05), swing_fallback=fallback)
     plan = resolve_stances(p, stances, options, guess=guess, verbose=False)
     if not fallback:

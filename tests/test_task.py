@@ -143,6 +143,8 @@ def test_task_file_errors_for_missing_and_broken_files(tmp_path):
      r"`goals.lift_offs` names \['heel'\], which the robot has not; its contacts: toe"),
     ("[robot]", 'actuated = ["knee"]\n[robot]', r"`actuated` names \['knee'\], which are neither"),
     ("friction = 0.5", "friction = 0.0", r"`contacts\[toe\].no_slip` needs friction > 0"),
+    ("friction = 0.5\nno_slip = true", "friction = 0.0\nclearance = 0.05",
+     r"`contacts\[toe\].clearance` needs friction > 0"),
 ])
 def test_build_errors_name_the_field(task_file, old, new, message):
     with pytest.raises(InvalidInput, match=message):

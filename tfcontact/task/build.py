@@ -146,17 +146,18 @@ def build_task(task: Task) -> TaskSetup:
     path = None
     rows, row_upper, row_lower = [], [], []
     for c, entry in zip(cls.contacts, task.contacts, strict=True):
+        for name, asked in (("no_slip", entry.no_slip), ("clearance", entry.clearance)):
+            if asked and c.mu == 0.0:
+                raise InvalidInput(f"`contacts[{entry.frame}].{name}` needs friction > 0 "
+                                   "(a frictionless contact has no tangents: no force to "
+                                   "stop a slide, no speed along the ground)")
+        if entry.no_slip or entry.clearance is not None:
+            speed2 = ca.sumsqr(ca.mtimes(c.tangents.T, cls.v))  # ||v_t||^2
         if entry.no_slip:
-            if c.mu == 0.0:
-                raise InvalidInput(f"`contacts[{entry.frame}].no_slip` needs friction > 0 "
-                                   "(a frictionless contact has no tangential force to stop "
-                                   "a slide)")
-            slip = ca.mtimes(c.tangents.T, cls.v)
-            rows.append(ca.sumsqr(slip) - entry.no_slip_gain * c.gap)
+            rows.append(speed2 - entry.no_slip_gain * c.gap)
             row_lower.append(-np.inf)
             row_upper.append(0.0)
         if entry.clearance is not None:  # h v_t^2 <= gap (v_t^2 + c^2), smooth at v_t = 0
-            speed2 = ca.sumsqr(ca.mtimes(c.tangents.T, cls.v))
             rows.append(entry.clearance * speed2
                         - c.gap * (speed2 + entry.clearance_speed ** 2))
             row_lower.append(-np.inf)
