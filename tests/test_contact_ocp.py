@@ -6,7 +6,7 @@ import pytest
 
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp import ContactProblem, ContactSolverOptions
-from tfcontact.ocp.contact import perturbed_guess, transcribe
+from tfcontact.ocp.contact import perturbed_guess, solve_contact, transcribe
 from tfcontact.scenes.particles import painleve_rod, point_mass
 from tfcontact.timefreezing import time_freeze, with_speed_of_time
 from tfcontact.verify import defect_segments, painleve_note
@@ -58,6 +58,9 @@ def test_bad_contact_problems_are_named(particle):
         ContactSolverOptions(attempts=True)
     with pytest.raises(InvalidInput, match="`restart_noise` must be a positive number"):
         ContactSolverOptions(restart_noise=-1e-4)
+    for seed in (-1, 1.5, True):
+        with pytest.raises(InvalidInput, match="`first_seed` must be an integer >= 0"):
+            solve_contact(ContactProblem(**base), first_seed=seed, verbose=False)
     # counts from numpy are counts too (one check for every layer, `positive_int`)
     assert ContactSolverOptions(attempts=np.int64(2)).attempts == 2
     assert ContactProblem(**{**base, "n_intervals": np.int64(4)}).n_intervals == 4

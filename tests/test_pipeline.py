@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import pytest
 
@@ -83,6 +83,60 @@ def test_a_stage_runs_only_for_its_tasks(tmp_path, monkeypatch):
     report = plans.run_plan("two", tmp_path / "long", task="long", verbose=False)
     assert report.status == "converged" and seen[1:] == [("two", "long", None),
                                                           ("two", "long", "first")]
+
+
+@dataclass(frozen=True)
+class _SeededDiscovery(Discover):
+    """A discovery without a solver: notes the seed and attempts it was given."""
+
+    build: object = None
+    seen: list = field(default_factory=list)
+
+    def run(self, given: StageInput) -> PlanOutcome:
+        self.seen.append((given.seed, given.attempts))
+        return PlanOutcome(None, None, "verification_failed", False, "relaxed")
+
+
+@dataclass(frozen=True)
+class _ExactFrom(Stage):
+    """A re-solve whose plan succeeds from the discovery of seed `first_good` on."""
+
+    first_good: int
+    name: str = "re-solve"
+    tasks: tuple[str, ...] | None = None
+
+    def run(self, given: StageInput) -> PlanOutcome:
+        good = given.seed >= self.first_good
+        status = "converged" if good else "goal_missed"
+        return PlanOutcome(None, None, status, good, status)
+
+
+def test_a_plan_with_whole_attempts_runs_again_from_its_discovery(tmp_path, monkeypatch):
+    """`Plan.whole_attempts`: a re-solved plan that fails runs the whole pipeline again,
+    its discovery one solve from the next seed, until it succeeds; `--attempts` sets the
+    runs; each stage's entry names its run."""
+    discovery = _SeededDiscovery()
+    monkeypatch.setitem(plans.PLANS, "walk", Plan("walk", "walk", ("only",),
+                                                  (discovery, _ExactFrom(2)),
+                                                  whole_attempts=3))
+    report = plans.run_plan("walk", tmp_path / "three", verbose=False)
+    assert (report.success, report.status) == (True, "converged")
+    assert discovery.seen == [(0, 1), (1, 1), (2, 1)]
+    stages = json.loads((tmp_path / "three" / "summary.json").read_text())["stages"]
+    assert [(s["stage"], s["status"], s.get("run")) for s in stages[:-1]] == [
+        (stage, status, run) for run, status in ((1, "goal_missed"), (2, "goal_missed"),
+                                                 (3, "converged"))
+        for stage, status in (("discover", "verification_failed"), ("re-solve", status),
+                              ("collision check", "not checked"))]
+    discovery.seen.clear()
+    report = plans.run_plan("walk", tmp_path / "two", attempts=2, verbose=False)
+    assert (report.success, report.status) == (False, "goal_missed")
+    assert discovery.seen == [(0, 1), (1, 1)]
+    with pytest.raises(InvalidInput, match="`whole_attempts` needs a Discover first"):
+        Plan("own", "own", ("only",), (_Record("converged", []),), whole_attempts=2)
+    for runs in (0, 1.5, True):
+        with pytest.raises(InvalidInput, match="`whole_attempts` must be None or an integer"):
+            Plan("walk", "walk", ("only",), (discovery,), whole_attempts=runs)
 
 
 def test_an_exact_resolve_needs_a_discovery_before_it(tmp_path):

@@ -261,6 +261,12 @@ def test_unreachable_target_fails_with_reason():
     assert result.ocp.ipopt_status in ("Infeasible_Problem_Detected",
                                        "Maximum_Iterations_Exceeded",
                                        "Restoration_Failed")
+    # a pipeline's second run of a whole plan solves its discovery from seed 1 on
+    # (`first_seed`): the same perturbed guess as the second attempt above
+    again = solve_contact(problem, dataclasses.replace(options, attempts=1), first_seed=1,
+                          verbose=False)
+    assert [(a.seed, a.status) for a in again.attempts] == [(1, "nlp_failed")]
+    assert again.ocp.total_iterations == result.attempts[1].iterations
 
 
 def test_walls_constant():

@@ -540,6 +540,98 @@ def test_a_case_runs_the_plans_later_stages_from_its_perturbed_start(tmp_path, m
     assert CaseResult.from_dict(json.loads(json.dumps(record.to_dict()))) == record
 
 
+def test_a_task_files_case_is_the_task_stated_from_its_perturbed_start(tmp_path):
+    """A task file's case plans from its start as a user standing there would state it:
+    the tracked splines begin at the perturbed start (the tracking cost vanishes there at
+    t = 0), not at the file's start; the goals and way points stay."""
+    from types import SimpleNamespace as NS
+
+    from strider import write_strider
+
+    from tfcontact.sweep.perturbation import perturbed_problem
+
+    target = sweep_target(str(write_strider(tmp_path)))
+    setup = target.setup("task", {})
+    names = setup.problem.system.cls.q_names
+    q0 = setup.problem.q0.copy()
+    q0[names.index("x")] += 0.03
+    q0[names.index("z")] += 0.01
+    start = NS(q0=q0, v0=setup.problem.v0)
+    moved = target.from_start(setup, "task", {}, start)
+    np.testing.assert_array_equal(moved.q0, q0)
+
+    def tracking_at_start(problem):
+        tf = problem.system
+        y = np.zeros(tf.y.numel())
+        y[tf.q_index], y[tf.v_index] = problem.q0, problem.v0  # clock 0
+        cost = ca.Function("cost", [tf.y, tf.u], [problem.running_cost])
+        return float(cost(y, np.zeros(tf.u.numel())))
+
+    assert tracking_at_start(moved) == pytest.approx(0.0, abs=1e-12)
+    # only the start replaced: x and z tracked from the file's start, 50 dx^2 + 500 dz^2
+    assert tracking_at_start(perturbed_problem(setup.problem, start)) == pytest.approx(
+        50 * 0.03 ** 2 + 500 * 0.01 ** 2)
+    assert moved.goals == setup.problem.goals
+
+
+def test_a_case_runs_a_failed_plan_again_whole_from_its_next_seed(tmp_path, monkeypatch):
+    """A plan with `whole_attempts` (a task file's `attempts` with `exact_resolve`): a case
+    whose re-solved plan failed runs the discovery again from the next seed and the later
+    stages on it, as `tfcontact plan` does; the record counts every run (stand-ins for the
+    solver: only the fields read)."""
+    from types import SimpleNamespace as NS
+
+    from strider import write_strider
+
+    from tfcontact.ocp import contact
+    from tfcontact.ocp.contact import Attempt
+    from tfcontact.scenes import pipeline
+    from tfcontact.sweep import results, run
+    from tfcontact.sweep.results import SweepResult
+    from tfcontact.sweep.run import solve_case
+
+    path = write_strider(tmp_path)
+    path.write_text(path.read_text().replace("exact_resolve = true",
+                                             "exact_resolve = true\nattempts = 3"))
+    seeds = []
+
+    def discovery(problem, options, *, first_seed, verbose):
+        seeds.append((first_seed, options.attempts))
+        return NS(attempts=(Attempt(first_seed or None, "verification_failed", 100 + first_seed,
+                                    1.0, 0.1, 2.0),),
+                  status="verification_failed", success=False, problem=problem,
+                  ocp=NS(cost=1.0, residual=1e-3, success=True), options=options,
+                  verification=NS(end_state_deviation=2.0, summary=lambda: "relaxed"),
+                  timings={"build": 0.1, "solve": 1.0, "verify": 0.1},
+                  task=NS(to_dict=dict))
+
+    def later(plan, task, stages, found):
+        good = found == 1  # the second run's discovery
+        status = "converged" if good else "goal_missed"
+        return (NS(trajectory=None, status=status, success=good, task={}, summary=status),
+                [{"stage": "stance re-solve", "status": status, "iterations": 10,
+                  "seconds": 1.0}])
+
+    monkeypatch.setattr(contact, "solve_contact", discovery)
+    monkeypatch.setattr(pipeline, "discovery_outcome",
+                        lambda result, setup: result.attempts[0].iterations - 100)
+    monkeypatch.setattr(run, "run_later_stages", later)
+    monkeypatch.setattr(results, "failure_reason", lambda result: ("relaxed", "verification"))
+    record = solve_case(sweep_target(str(path)), "task", SweepCase((), 0, 3), threads=1)
+    assert seeds == [(0, 1), (1, 1)]
+    assert (record.status, record.success, record.first_attempt_success) == (
+        "converged", True, False)
+    assert record.attempts_used == 2
+    assert record.iterations == 100 + 101 + 2 * 10
+    assert [(s["stage"], s["run"]) for s in record.extra["stages"]] == [
+        ("discover", 1), ("stance re-solve", 1), ("discover", 2), ("stance re-solve", 2)]
+    table = SweepResult(SweepSpec("hopper", starts=1), tmp_path, (record,), 1, 0, 1.0,
+                        "here").table()
+    assert ("verification_failed > verification_failed; then stance re-solve goal_missed; "
+            "run 2: discover verification_failed, stance re-solve converged") in table
+    assert "ran the whole plan again" in table
+
+
 @pytest.mark.parametrize(("argv", "message"), [
     (["hopper", "--starts", "0"], "`starts` must be a positive integer, got 0"),
     (["monoped"], "plan `monoped` has stages that solve problems of their own"),

@@ -860,6 +860,27 @@ def test_a_task_sets_the_homotopys_residual_and_asks_for_an_exact_resolve(task_f
                                      if "complementarity" in bad else "exact_resolve = true"))
 
 
+def test_a_tasks_attempts_solve_its_discovery_or_its_whole_plan_again(task_file):
+    """`attempts`: the discovery's own (`ContactSolverOptions.attempts`) when the
+    discovery is the plan; with `exact_resolve`, the runs of the whole plan
+    (`Plan.whole_attempts`, the preset's attempts unless given)."""
+    from tfcontact.scenes.plans import task_plan
+
+    assert task_plan(task_file).whole_attempts is None
+    path = _edited(task_file, "horizon = 1.0", "horizon = 1.0\nattempts = 2")
+    assert build_task(load_task(path)).options.attempts == 2
+    assert task_plan(path).whole_attempts is None
+    path = _edited(path, "attempts = 2", "attempts = 2\nexact_resolve = true")
+    assert task_plan(path).whole_attempts == 2
+    path = _edited(path, "attempts = 2\n", "")
+    assert task_plan(path).whole_attempts == SOLVER_PRESETS["default"]().attempts == 3
+    for bad in ("0", "1.5", "true"):
+        _edited(path, "exact_resolve = true", f"exact_resolve = true\nattempts = {bad}")
+        with pytest.raises(InvalidInput, match="`attempts` must be a positive integer"):
+            load_task(path)
+        _edited(path, f"\nattempts = {bad}", "")
+
+
 # The shipped terrain tasks, planned end to end (the tasks' "fast" preset to a residual of
 # 1e-4): about 5 s each on a shared 2-core machine. Up to 3 attempts: the platform's plan
 # depends on round-off (its task file), and a restart from a perturbed guess is the

@@ -120,7 +120,8 @@ def main(argv: list[str] | None = None) -> int:
                            "monoped: full, reduced, hand-set)")
     plan.add_argument("--attempts", type=_positive(int, "--attempts"), default=None,
                       help="solve a failed plan again from a perturbed guess, up to this "
-                           "many solves in all (default: the plan's; hopper: 3 for the short task)")
+                           "many solves in all (default: the plan's; hopper: 3 for the short "
+                           "task); a task with exact_resolve runs its whole plan again")
     plan.add_argument("--quiet", action="store_true", help="no progress output")
     plan.set_defaults(func=_plan)
 

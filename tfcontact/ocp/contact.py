@@ -552,6 +552,7 @@ def solve_contact(
     options: ContactSolverOptions | None = None,
     *,
     initial_guess: ContactResult | None = None,
+    first_seed: int = 0,
     verbose: bool = True,
     throw: bool = False,
 ) -> ContactResult:
@@ -567,6 +568,10 @@ def solve_contact(
             iterate is the start when the discretisation is the same, else its states
             and controls at the interval boundaries. Start the homotopy lower
             (`Homotopy(sigma_0=...)`) to stay near it.
+        first_seed: the seed of the first solve's perturbed guess (0: the unperturbed
+            guess); attempt k uses first_seed + k. A pipeline that runs a whole plan again
+            after its later stage failed (`tfcontact.scenes.Plan.whole_attempts`) solves
+            its k-th discovery with first_seed = k.
         verbose: one line per homotopy step and the summary.
         throw: raise `SolveFailed` (with the result) unless the plan succeeded.
 
@@ -577,6 +582,8 @@ def solve_contact(
         failed one nearest success (`nearest_success`), and `attempts` lists them all.
     """
     options = options if options is not None else ContactSolverOptions()
+    if isinstance(first_seed, bool) or not isinstance(first_seed, int) or first_seed < 0:
+        raise InvalidInput(f"`first_seed` must be an integer >= 0, got {first_seed!r}")
     start = time.perf_counter()
     ocp_problem, system = transcribe(problem)
     transcription = Transcription(scheme=options.scheme,
@@ -589,14 +596,17 @@ def solve_contact(
     solves: list[tuple] = []
     totals = {"build": 0.0, "solve": 0.0, "verify": 0.0}
     for k in range(options.attempts):
-        seed = k or None  # the first solve starts from the unperturbed guess
+        seed = (first_seed + k) or None  # seed 0: the unperturbed guess
         attempt_problem, attempt_w0 = ocp_problem, w0
         if seed is not None:
-            if verbose:
+            if verbose and attempts:
                 last = attempts[-1]
                 print(f"attempt {k + 1} of {options.attempts}: the last plan ended "
                       f"{last.status} (end-state deviation {last.end_state_deviation:.2e}); "
                       f"solving again from the initial guess perturbed by "
+                      f"{options.restart_noise:g} (seed {seed})", flush=True)
+            elif verbose:
+                print(f"solving from the initial guess perturbed by "
                       f"{options.restart_noise:g} (seed {seed})", flush=True)
             attempt_problem = perturbed_guess(ocp_problem, options.restart_noise, seed)
             attempt_w0 = None

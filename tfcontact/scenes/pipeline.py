@@ -44,7 +44,9 @@ class PlanSetup:
     then follow its normal along the plan), else None (one plane: the scene's normal).
     `options`: the discovery's `ContactSolverOptions` (None for a setup only re-solved
     exactly). `start_ranges`: {name: (low, high)} offsets a stability sweep draws for the
-    start (a task's `start_ranges`); None: the sweep's defaults."""
+    start (a task's `start_ranges`); None: the sweep's defaults. `from_start`: (q0, v0) ->
+    the problem planned from that start as its user would state it (a task file's
+    reference splines then begin there); None: `problem` with only q0 and v0 replaced."""
 
     robot: Robot
     problem: ContactProblem
@@ -52,6 +54,7 @@ class PlanSetup:
     scene: dict
     terrain: Terrain | None = None
     start_ranges: dict[str, tuple[float, float]] | None = None
+    from_start: Callable[[np.ndarray, np.ndarray], ContactProblem] | None = None
 
 
 @dataclass(frozen=True)
@@ -75,7 +78,9 @@ class PlanOutcome:
 @dataclass(frozen=True)
 class StageInput:
     """What a stage of a plan's pipeline gets: the plan and task names, the staging
-    folder, the user's settings and the outcome of the stage before (None first)."""
+    folder, the user's settings, the outcome of the stage before (None first) and the
+    seed of the discovery's first solve (0: its unperturbed guess; the k-th run of a
+    plan with `Plan.whole_attempts` has seed k)."""
 
     plan: str
     task: str
@@ -83,6 +88,7 @@ class StageInput:
     verbose: bool
     attempts: int | None
     previous: PlanOutcome | None
+    seed: int = 0
 
 
 class Stage(ABC):
@@ -122,23 +128,26 @@ class Discover(Stage):
         if given.verbose:
             print(f"plan {given.plan} ({given.task}): {robot.model.name}, nq = {robot.nq}, "
                   f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
-        result = solve_contact(problem, options, verbose=given.verbose)
+        result = solve_contact(problem, options, first_seed=given.seed,
+                               verbose=given.verbose)
         return discovery_outcome(result, setup)
 
 
 def run_stages(plan: str, task: str, stages: Sequence[Stage], out: Path, *,
                verbose: bool = False, attempts: int | None = None,
-               outcome: PlanOutcome | None = None) -> tuple[PlanOutcome, list[dict]]:
+               outcome: PlanOutcome | None = None, seed: int = 0
+               ) -> tuple[PlanOutcome, list[dict]]:
     """Run `stages` in turn, each given the outcome before it (`outcome` first: None when
-    the first stage is a discovery). Returns the last outcome and, per stage, its name,
-    status, whether it ran, IPOPT iterations and seconds (a stage that did not start hands
-    on the trajectory and status before it: not `ran`, 0 iterations of its own)."""
+    the first stage is a discovery; `seed`: its first solve's, `StageInput.seed`). Returns
+    the last outcome and, per stage, its name, status, whether it ran, IPOPT iterations and
+    seconds (a stage that did not start hands on the trajectory and status before it: not
+    `ran`, 0 iterations of its own)."""
     times = []
     for stage in stages:
         if verbose and len(stages) > 1:
             print(f"plan {plan} ({task}): stage {stage.name}", flush=True)
         began, before = time.perf_counter(), outcome
-        outcome = stage.run(StageInput(plan, task, out, verbose, attempts, outcome))
+        outcome = stage.run(StageInput(plan, task, out, verbose, attempts, outcome, seed))
         ran = outcome.trajectory is not None and (
             before is None or outcome.trajectory is not before.trajectory)
         times.append({"stage": stage.name, "status": outcome.status, "ran": ran,
@@ -418,17 +427,34 @@ class StanceResolve(Stage):
 @dataclass(frozen=True)
 class Plan:
     """A named robot plan as data: its tasks and the stages `run_plan` runs in turn (e.g.
-    discover the contact sequence, then re-solve exactly along it)."""
+    discover the contact sequence, then re-solve exactly along it).
+
+    `whole_attempts`: None, a failed plan is solved again by its discovery alone
+    (`ContactSolverOptions.attempts`, judged on the discovery's own plan); an integer n,
+    the whole pipeline runs up to n times until its last stage's plan succeeds (verified,
+    task done, clear of the terrain), the k-th run's discovery one solve from its guess
+    perturbed with seed k (`StageInput.seed`). A discovery's relaxed plan that a later
+    stage re-solves exactly is not the plan, so its own verdict cannot decide a retry:
+    bolt's relaxed walks all fail the reference that their exact re-solves pass."""
 
     name: str
     summary: str
     tasks: tuple[str, ...]
     stages: tuple[Stage, ...]
+    whole_attempts: int | None = None
 
     def __post_init__(self) -> None:
         if not self.stages or not all(isinstance(s, Stage) for s in self.stages):
             raise InvalidInput(f"plan `{self.name}` needs stages (Discover, ExactResolve, "
                                "...)")
+        if self.whole_attempts is not None:
+            if (isinstance(self.whole_attempts, bool) or not isinstance(self.whole_attempts, int)
+                    or self.whole_attempts < 1):
+                raise InvalidInput(f"plan `{self.name}`: `whole_attempts` must be None or an "
+                                   f"integer >= 1, got {self.whole_attempts!r}")
+            if not isinstance(self.stages[0], Discover):
+                raise InvalidInput(f"plan `{self.name}`: `whole_attempts` needs a Discover "
+                                   "first (its seed is what changes between runs)")
         for stage in self.stages:
             unknown = set(stage.tasks or ()) - set(self.tasks)
             if unknown:

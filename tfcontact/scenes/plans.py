@@ -31,7 +31,9 @@ from tfcontact.scenes.pipeline import (
 )
 
 if TYPE_CHECKING:
-    from collections.abc import Sequence
+    from collections.abc import Callable, Sequence
+
+    import numpy as np
 
     from tfcontact.robot import Ground
 
@@ -98,7 +100,13 @@ def task_plan(source: str | Path) -> Plan:
     Raises:
         InvalidInput: no such task, or a bad field in it (named).
     """
-    from tfcontact.task import build_task, load_task, resolve_path_rows, shipped_tasks
+    from tfcontact.task import (
+        SOLVER_PRESETS,
+        build_task,
+        load_task,
+        resolve_path_rows,
+        shipped_tasks,
+    )
 
     shipped = shipped_tasks()
     path = shipped.get(str(source), Path(source))
@@ -112,8 +120,17 @@ def task_plan(source: str | Path) -> Plan:
 
         setup = build_task(data)
         terrain = setup.terrain if isinstance(setup.terrain, Terrain) else None
+        cls = setup.problem.system.cls
+
+        def from_start(q0: np.ndarray, v0: np.ndarray) -> Any:
+            # the task stated from there: its tracked splines begin at the new start
+            start = dict(zip((*cls.q_names, *cls.v_names),
+                             (float(v) for v in (*q0, *v0)), strict=True))
+            return build_task(dataclasses.replace(data, start=start)).problem
+
         return PlanSetup(setup.robot, setup.problem, setup.options, setup.scene, terrain,
-                         start_ranges=dict(data.start_ranges) or None)
+                         start_ranges=dict(data.start_ranges) or None,
+                         from_start=from_start)
 
     # one contact: its sequence with slip phases (`polish`); several: the stances found,
     # where the no-slip rows hold by construction (an open no-slip contact keeps
@@ -123,9 +140,13 @@ def task_plan(source: str | Path) -> Plan:
         StanceOptions(open_slip_gains=gains,
                       nodes=data.resolve_elements or StanceOptions.nodes),
         path_rows=resolve_path_rows(data)))
-    stages = (Discover(build), resolve) if data.exact_resolve else (Discover(build),)
+    if not data.exact_resolve:
+        return Plan(name=data.name, summary=data.description or f"task file {path}",
+                    tasks=("task",), stages=(Discover(build),))
+    # the re-solved plan is the plan: a failed one runs the whole pipeline again
+    runs = data.attempts or SOLVER_PRESETS[data.solver]().attempts
     return Plan(name=data.name, summary=data.description or f"task file {path}",
-                tasks=("task",), stages=stages)
+                tasks=("task",), stages=(Discover(build), resolve), whole_attempts=runs)
 
 
 def plan_named(name: str | Path) -> Plan:
@@ -164,9 +185,17 @@ def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
     folder = OutputFolder(Path(out_dir), force=force)
     folder.check()
     start = time.perf_counter()
+    stages = plan.stages_for(task)
     with folder.staging() as stage:
-        outcome, stage_times, collisions, report = run_checked(
-            name, task, plan.stages_for(task), stage, verbose=verbose, attempts=attempts)
+        if plan.whole_attempts is None:
+            outcome, stage_times, collisions, report = run_checked(
+                name, task, stages, stage, verbose=verbose, attempts=attempts)
+        else:  # the whole pipeline again, each discovery one solve from its own seed
+            outcome, stage_times, collisions, report = run_whole(
+                attempts or plan.whole_attempts,
+                lambda seed: run_checked(name, task, stages, stage, verbose=verbose,
+                                         attempts=1, seed=seed),
+                plan=name, task=task, verbose=verbose)
         collision_files = ([] if report is None
                            else [save_collision_figure(report, stage / "collisions.png")])
         files = _write_outcome(name, task, stage, start, outcome, collisions,
@@ -218,19 +247,40 @@ def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanO
 
 def run_checked(plan: str, task: str, stages: Sequence[Stage], out: Path, *,
                 verbose: bool = False, attempts: int | None = None,
-                outcome: PlanOutcome | None = None
+                outcome: PlanOutcome | None = None, seed: int = 0
                 ) -> tuple[PlanOutcome, list[dict], dict, Any]:
     """`run_stages`, then `check_collisions` on the last outcome, as `tfcontact plan` and
     a sweep's case run a plan: the outcome, each stage's entry (the collision check's
     last), the collision dict and report."""
     outcome, times = run_stages(plan, task, stages, out, verbose=verbose,
-                                attempts=attempts, outcome=outcome)
+                                attempts=attempts, outcome=outcome, seed=seed)
     began = time.perf_counter()
     outcome, collisions, report = check_collisions(outcome)
     times.append({"stage": "collision check", "status": collisions.get("status",
                                                                        "not checked"),
                   "ran": True, "seconds": time.perf_counter() - began})
     return outcome, times, collisions, report
+
+
+def run_whole(runs: int, run_once: Callable[[int], tuple[PlanOutcome, list[dict], dict, Any]],
+              *, plan: str, task: str, verbose: bool = False
+              ) -> tuple[PlanOutcome, list[dict], dict, Any]:
+    """Run a whole plan (`run_once(seed)`: its stages, discovery first, and the collision
+    check, as `run_checked` returns them) up to `runs` times, seeds 0, 1, ..., until its
+    outcome succeeds (`Plan.whole_attempts`). Returns the last run's outcome, collision
+    dict and report, and every run's stage entries, each with its `run` (1, 2, ...)."""
+    positive_int(runs, "attempts")
+    entries: list[dict] = []
+    for seed in range(runs):
+        outcome, times, collisions, report = run_once(seed)
+        entries += [{**entry, "run": seed + 1} for entry in times]
+        if outcome.success:
+            break
+        if verbose and seed + 1 < runs:
+            print(f"plan {plan} ({task}): run {seed + 1} of {runs} ended {outcome.status}; "
+                  f"the whole plan again, its discovery from a guess perturbed with seed "
+                  f"{seed + 1}", flush=True)
+    return outcome, entries, collisions, report
 
 
 def check_collisions(outcome: PlanOutcome) -> tuple[PlanOutcome, dict, Any]:

@@ -135,10 +135,14 @@ def markdown(result: SweepResult) -> str:
         # a discovery's relaxed plan may fail its replay where the stage after it passes:
         # the row says what each later stage ended with
         later = c.extra.get("stages", [])[1:]
+        by_run: dict[int, list[str]] = {}  # a plan run again whole: its "run 2: ..."
+        for s in later:
+            by_run.setdefault(s.get("run", 1), []).append(
+                f"{s['stage']} {s['status'] if stage_ran(s) else 'not started'}")
         if later:
-            attempts += "; then " + ", ".join(
-                f"{s['stage']} {s['status'] if stage_ran(s) else 'not started'}"
-                for s in later)
+            attempts += "; then " + "; ".join((f"run {run}: " if run > 1 else "")
+                                              + ", ".join(items)
+                                              for run, items in by_run.items())
         failure = (c.failure or "").replace("|", "/")
         lines.append(f"| {c.case_id} | {deltas} | {c.status} | {attempts} | {c.iterations} | "
                      f"{c.objective:.4g} | {c.wall_time:.1f} | "
@@ -151,11 +155,15 @@ def _stages_text(cases: Sequence[CaseResult]) -> str:
     stages = next((c.extra["stages"] for c in cases if c.extra.get("stages")), None)
     if not stages:
         return ""
-    later = [s["stage"] for s in stages[1:]]
+    later = [s["stage"] for s in stages[1:] if s.get("run", 1) == 1]
     return (f" Each case also ran the plan's later stages ({', '.join(later)}) as "
             "`tfcontact plan` does: it is verified when the whole plan succeeded (the last "
             "stage's plan verified, its task done, clear of the terrain), and its iterations "
-            "count every stage's.")
+            "count every stage's."
+            + (" A case whose plan failed ran the whole plan again, its discovery from a "
+               "perturbed guess (`run 2: ...`; the plan's `attempts`), and its attempts "
+               "count every discovery." if any(s.get("run", 1) > 1 for c in cases
+                                               for s in c.extra.get("stages", ())) else ""))
 
 
 _MARKERS = {"verified, 1st attempt": ("o", "tab:green"),

@@ -50,23 +50,41 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
     rng = np.random.default_rng([case.seed, case.start])
     start = target.perturbation(setup).sample(setup.problem, rng)
     problem = target.from_start(setup, task, problem_params, start)
-    result = solve_contact(problem, options, verbose=False)
     stages = target.later_stages(task)
     if not stages:
+        result = solve_contact(problem, options, verbose=False)
         return CaseResult.from_contact(case, target.name, task, start, result,
                                        time.perf_counter() - started,
                                        cpu_time=time.process_time() - cpu)
     from tfcontact.scenes.pipeline import discovery_outcome
+    from tfcontact.scenes.plans import run_whole
 
-    discovery_seconds = time.perf_counter() - started
-    found = discovery_outcome(result, dataclasses.replace(setup, problem=problem))
-    outcome, stage_times = run_later_stages(target.name, task, stages, found)
-    record = CaseResult.from_contact(case, target.name, task, start, result,
+    runs = target.whole_attempts(task)
+    if runs is not None:  # as `tfcontact plan`: each run's discovery one seeded solve
+        options = dataclasses.replace(options, attempts=1)
+    results = []
+
+    def run_once(seed: int) -> tuple:
+        began = time.perf_counter()
+        result = solve_contact(problem, options, first_seed=seed, verbose=False)
+        results.append(result)
+        found = discovery_outcome(result, dataclasses.replace(setup, problem=problem))
+        entry = {"stage": "discover", "status": result.status, "ran": True,
+                 "seconds": time.perf_counter() - began}
+        outcome, stage_times = run_later_stages(target.name, task, stages, found)
+        return outcome, [entry, *stage_times], None, None
+
+    outcome, stage_times, _, _ = run_whole(runs or 1, run_once, plan=target.name, task=task)
+    record = CaseResult.from_contact(case, target.name, task, start, results[-1],
                                      time.perf_counter() - started,
                                      cpu_time=time.process_time() - cpu)
-    return record.after_stages(outcome, [{"stage": "discover", "status": result.status,
-                                          "ran": True, "seconds": discovery_seconds},
-                                         *stage_times])
+    # every run's discovery solves count (the stage entries of a discovery carry none)
+    earlier = [a for r in results[:-1] for a in r.attempts]
+    record = dataclasses.replace(
+        record, attempts_used=len(earlier) + record.attempts_used,
+        attempt_statuses=tuple(a.status for a in earlier) + record.attempt_statuses,
+        iterations=sum(a.iterations for a in earlier) + record.iterations)
+    return record.after_stages(outcome, stage_times)
 
 
 def run_later_stages(plan: str, task: str, stages, outcome) -> tuple[Any, list[dict]]:

@@ -60,6 +60,11 @@ class SweepTarget(ABC):
         outcome, as `tfcontact plan` would (default none: the discovery is the plan)."""
         return ()
 
+    def whole_attempts(self, task: str) -> int | None:
+        """How often a case runs the whole plan until it succeeds (`Plan.whole_attempts`;
+        default None: once, the discovery retried by its own attempts)."""
+        return None
+
 
 HOPPER_PERTURBATION = Perturbation((
     CoordinateRange("x", -0.05, 0.05),
@@ -188,6 +193,18 @@ class PlanTarget(SweepTarget):
 
     def later_stages(self, task: str) -> tuple[Stage, ...]:
         return plan_named(self.name).stages_for(task)[1:]
+
+    def whole_attempts(self, task: str) -> int | None:
+        return plan_named(self.name).whole_attempts
+
+    def from_start(self, setup: PlanSetup, task: str, params: Mapping[str, float],
+                   start: PerturbedStart):
+        """The plan from `start` as its user would state it (`PlanSetup.from_start`: a
+        task file's reference splines begin there, as the hopper's do), else only its
+        start state replaced."""
+        if setup.from_start is None:
+            return super().from_start(setup, task, params, start)
+        return setup.from_start(np.asarray(start.q0), np.asarray(start.v0))
 
     def perturbation(self, setup: PlanSetup) -> Perturbation:
         if setup.start_ranges:

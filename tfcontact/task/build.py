@@ -221,6 +221,8 @@ def build_task(task: Task) -> TaskSetup:
     if task.barrier is not None:
         options = dataclasses.replace(options, nlp=dataclasses.replace(
             options.nlp, options={**options.nlp.options, "mu_strategy": task.barrier}))
+    if task.attempts is not None:
+        options = dataclasses.replace(options, attempts=task.attempts)
     scene = {"terrain": task.terrain.to_dict()}
     return TaskSetup(task, robot, problem, options, scene, ground)
 

@@ -70,7 +70,8 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "actuated", "effort", "bounds", "terrain", "waypoints", "goals", "costs", "solver",
         "guess", "a_n", "gap_scale", "exact_resolve",
         "complementarity_tolerance", "finite_elements", "friction_model", "periodic",
-        "period", "period_from", "barrier", "resolve_elements", "start_ranges"}
+        "period", "period_from", "barrier", "resolve_elements", "start_ranges",
+        "attempts"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "clearance", "clearance_speed",
@@ -156,7 +157,7 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         solver=top.get("solver", "default"), guess=top.get("guess", "start"),
         a_n=top.get("a_n", 100.0), gap_scale=top.get("gap_scale", 30.0),
         exact_resolve=top.get("exact_resolve", False),
-        resolve_elements=top.get("resolve_elements"),
+        resolve_elements=top.get("resolve_elements"), attempts=top.get("attempts"),
         complementarity_tolerance=top.get("complementarity_tolerance"),
         finite_elements=top.get("finite_elements"),
         friction_model=top.get("friction_model", "cone"),

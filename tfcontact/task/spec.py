@@ -431,6 +431,13 @@ class Task:
             (several contacts; default `StanceOptions.nodes`, 3). Fewer elements make a
             cheaper NLP and larger local defects (order 5: about (3/2)^5 = 7.6 times
             larger with 2 than with 3), which the verification checks.
+        attempts: solves of the plan at most (default: the preset's): a plan that fails
+            is solved again from its guess perturbed (`ContactSolverOptions.attempts`).
+            With `exact_resolve` the whole plan runs again, discovery and re-solve
+            (`tfcontact.scenes.Plan.whole_attempts`), when the re-solved plan fails its
+            checks: the discovery's relaxed plan is not the plan, and its own verdict
+            cannot decide. Measured on biped-walk-short's perturbed starts
+            (benchmarks/sweeps).
         description: a line for `tfcontact plan --list`.
     """
 
@@ -461,6 +468,7 @@ class Task:
     barrier: str | None = None
     exact_resolve: bool = False
     resolve_elements: int | None = None
+    attempts: int | None = None
     description: str = ""
 
     def __post_init__(self) -> None:
@@ -555,5 +563,7 @@ class Task:
                 raise InvalidInput(
                     "`resolve_elements` sets the stance re-solve, which runs with "
                     "`exact_resolve = true` and several contacts; remove it or set both")
+        if self.attempts is not None:
+            object.__setattr__(self, "attempts", positive_int(self.attempts, "attempts"))
         if not isinstance(self.description, str):
             raise InvalidInput("`description` must be a string")
