@@ -572,6 +572,9 @@ def test_a_task_files_case_is_the_task_stated_from_its_perturbed_start(tmp_path)
     assert tracking_at_start(perturbed_problem(setup.problem, start)) == pytest.approx(
         50 * 0.03 ** 2 + 500 * 0.01 ** 2)
     assert moved.goals == setup.problem.goals
+    # the sweep file says so: a folder of cases that only replaced the start is not resumed
+    assert target.description() == {"reference": "from the start"}
+    assert sweep_target("hopper-exact").description() == {}
 
 
 def test_a_case_runs_a_failed_plan_again_whole_from_its_next_seed(tmp_path, monkeypatch):

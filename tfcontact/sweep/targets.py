@@ -197,6 +197,12 @@ class PlanTarget(SweepTarget):
     def whole_attempts(self, task: str) -> int | None:
         return plan_named(self.name).whole_attempts
 
+    def description(self) -> dict:
+        from tfcontact.scenes.plans import PLANS
+
+        # a task file's case is the task stated from its start (`from_start`)
+        return {} if self.name in PLANS else {"reference": "from the start"}
+
     def from_start(self, setup: PlanSetup, task: str, params: Mapping[str, float],
                    start: PerturbedStart):
         """The plan from `start` as its user would state it (`PlanSetup.from_start`: a
