@@ -135,7 +135,7 @@ def test_a_plan_with_whole_attempts_runs_again_from_its_discovery(tmp_path, monk
     with pytest.raises(InvalidInput, match="`whole_attempts` needs a Discover first"):
         Plan("own", "own", ("only",), (_Record("converged", []),), whole_attempts=2)
     for runs in (0, 1.5, True):
-        with pytest.raises(InvalidInput, match="`whole_attempts` must be None or an integer"):
+        with pytest.raises(InvalidInput, match="`whole_attempts` must be a positive integer"):
             Plan("walk", "walk", ("only",), (discovery,), whole_attempts=runs)
 
 

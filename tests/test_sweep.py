@@ -538,8 +538,9 @@ def test_a_case_runs_the_plans_later_stages_from_its_perturbed_start(tmp_path, m
     q0, plan = solved[-1]  # the last run's re-solve is the plan
     assert record.objective == plan.cost
     assert stages[-2]["iterations"] == plan.iterations
-    discovery = sum(a["iterations"] for a in record.extra["attempts"])  # the last run's
-    assert record.iterations >= discovery + sum(p.iterations for _, p in solved)
+    discovery = sum(a["iterations"] for a in record.extra["attempts"])  # every run's
+    assert record.iterations == discovery + sum(p.iterations for _, p in solved)
+    assert len(record.extra["attempts"]) == runs
     assert record.success == plan.success
     assert record.status == "converged", record.failure
     assert stages[-1]["status"] == "clear"
@@ -631,6 +632,8 @@ def test_a_case_runs_a_failed_plan_again_whole_from_its_next_seed(tmp_path, monk
     assert (record.status, record.success, record.first_attempt_success) == (
         "converged", True, False)
     assert record.attempts_used == 2
+    assert [(a["seed"], a["iterations"]) for a in record.extra["attempts"]] == [
+        (None, 100), (1, 101)]
     assert record.iterations == 100 + 101 + 2 * 10
     assert [(s["stage"], s["run"]) for s in record.extra["stages"]] == [
         ("discover", 1), ("stance re-solve", 1), ("discover", 2), ("stance re-solve", 2)]

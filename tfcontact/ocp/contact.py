@@ -582,8 +582,10 @@ def solve_contact(
         failed one nearest success (`nearest_success`), and `attempts` lists them all.
     """
     options = options if options is not None else ContactSolverOptions()
-    if isinstance(first_seed, bool) or not isinstance(first_seed, int) or first_seed < 0:
+    if (isinstance(first_seed, bool) or not isinstance(first_seed, int | np.integer)
+            or first_seed < 0):
         raise InvalidInput(f"`first_seed` must be an integer >= 0, got {first_seed!r}")
+    first_seed = int(first_seed)
     start = time.perf_counter()
     ocp_problem, system = transcribe(problem)
     transcription = Transcription(scheme=options.scheme,

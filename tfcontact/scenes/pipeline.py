@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tfcontact.errors import InvalidInput
+from tfcontact.errors import InvalidInput, positive_int
 from tfcontact.ocp.chain import ChainStep, ResolveChain, ResolveLevel, resolve_chain
 from tfcontact.ocp.goals import Goal, LiftOffs
 from tfcontact.ocp.polish import Phase, PolishedPlan, PolishOptions, contact_phases
@@ -448,10 +448,8 @@ class Plan:
             raise InvalidInput(f"plan `{self.name}` needs stages (Discover, ExactResolve, "
                                "...)")
         if self.whole_attempts is not None:
-            if (isinstance(self.whole_attempts, bool) or not isinstance(self.whole_attempts, int)
-                    or self.whole_attempts < 1):
-                raise InvalidInput(f"plan `{self.name}`: `whole_attempts` must be None or an "
-                                   f"integer >= 1, got {self.whole_attempts!r}")
+            object.__setattr__(self, "whole_attempts",
+                               positive_int(self.whole_attempts, "whole_attempts"))
             if not isinstance(self.stages[0], Discover):
                 raise InvalidInput(f"plan `{self.name}`: `whole_attempts` needs a Discover "
                                    "first (its seed is what changes between runs)")

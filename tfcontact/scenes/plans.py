@@ -101,11 +101,11 @@ def task_plan(source: str | Path) -> Plan:
         InvalidInput: no such task, or a bad field in it (named).
     """
     from tfcontact.task import (
-        SOLVER_PRESETS,
         build_task,
         load_task,
         resolve_path_rows,
         shipped_tasks,
+        solver_options,
     )
 
     shipped = shipped_tasks()
@@ -144,7 +144,7 @@ def task_plan(source: str | Path) -> Plan:
         return Plan(name=data.name, summary=data.description or f"task file {path}",
                     tasks=("task",), stages=(Discover(build),))
     # the re-solved plan is the plan: a failed one runs the whole pipeline again
-    runs = data.attempts or SOLVER_PRESETS[data.solver]().attempts
+    runs = solver_options(data).attempts
     return Plan(name=data.name, summary=data.description or f"task file {path}",
                 tasks=("task",), stages=(Discover(build), resolve), whole_attempts=runs)
 

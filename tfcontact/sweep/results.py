@@ -6,6 +6,7 @@ import dataclasses
 import json
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -131,6 +132,18 @@ class CaseResult:
                    "options": _options_record(result.options),
                    "task": result.task.to_dict()},
         )
+
+    def after_runs(self, earlier: Sequence[Any]) -> CaseResult:
+        """This record of a plan's last run (`Plan.whole_attempts`) with the discovery
+        solves of the runs before it (their `ContactResult`s) counted first: attempts
+        used, their statuses and records (`extra["attempts"]`), IPOPT iterations."""
+        attempts = [a for result in earlier for a in result.attempts]
+        return dataclasses.replace(
+            self, attempts_used=len(attempts) + self.attempts_used,
+            attempt_statuses=tuple(a.status for a in attempts) + self.attempt_statuses,
+            iterations=sum(a.iterations for a in attempts) + self.iterations,
+            extra={**self.extra,
+                   "attempts": [asdict(a) for a in attempts] + self.extra["attempts"]})
 
     def after_stages(self, outcome: Any, stages: list[dict]) -> CaseResult:
         """This discovery's record with the outcome of the plan's later stages (a

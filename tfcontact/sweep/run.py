@@ -78,13 +78,7 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
     record = CaseResult.from_contact(case, target.name, task, start, results[-1],
                                      time.perf_counter() - started,
                                      cpu_time=time.process_time() - cpu)
-    # every run's discovery solves count (the stage entries of a discovery carry none)
-    earlier = [a for r in results[:-1] for a in r.attempts]
-    record = dataclasses.replace(
-        record, attempts_used=len(earlier) + record.attempts_used,
-        attempt_statuses=tuple(a.status for a in earlier) + record.attempt_statuses,
-        iterations=sum(a.iterations for a in earlier) + record.iterations)
-    return record.after_stages(outcome, stage_times)
+    return record.after_runs(results[:-1]).after_stages(outcome, stage_times)
 
 
 def run_later_stages(plan: str, task: str, stages, outcome) -> tuple[Any, list[dict]]:

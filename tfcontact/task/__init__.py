@@ -11,6 +11,7 @@ from tfcontact.task.build import (
     contact_reach,
     coordinate_names,
     resolve_path_rows,
+    solver_options,
     task_region,
 )
 from tfcontact.task.files import (
@@ -51,6 +52,7 @@ __all__ = [
     "load_task",
     "plan",
     "resolve_path_rows",
+    "solver_options",
     "shipped_tasks",
     "task_from_dict",
     "task_region",

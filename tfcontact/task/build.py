@@ -75,7 +75,6 @@ def build_task(task: Task) -> TaskSetup:
     from tfcontact.ocp import Constraint
     from tfcontact.ocp.contact import ContactProblem, Periodicity
     from tfcontact.robot import BASE_COORDINATES, ContactSpec, Ground, load_robot
-    from tfcontact.task.presets import SOLVER_PRESETS
     from tfcontact.task.spec import FRICTION_MODELS
     from tfcontact.timefreezing import Inelastic, time_freeze
     from tfcontact.timefreezing.from_robot import from_robot
@@ -212,6 +211,15 @@ def build_task(task: Task) -> TaskSetup:
         v_lower=lower[len(names):], v_upper=upper[len(names):],
         path=path, terminal=end_constraint, goals=_goals(task, robot, cls), guess=guess,
         periodicity=periodicity)
+    scene = {"terrain": task.terrain.to_dict()}
+    return TaskSetup(task, robot, problem, solver_options(task), scene, ground)
+
+
+def solver_options(task: Task) -> Any:
+    """The discovery's `ContactSolverOptions`: the task's preset with the task's own
+    residual, finite elements, barrier and attempts (no robot is loaded)."""
+    from tfcontact.task.presets import SOLVER_PRESETS
+
     options = SOLVER_PRESETS[task.solver]()
     if task.complementarity_tolerance is not None:
         options = dataclasses.replace(options, homotopy=dataclasses.replace(
@@ -223,8 +231,7 @@ def build_task(task: Task) -> TaskSetup:
             options.nlp, options={**options.nlp.options, "mu_strategy": task.barrier}))
     if task.attempts is not None:
         options = dataclasses.replace(options, attempts=task.attempts)
-    scene = {"terrain": task.terrain.to_dict()}
-    return TaskSetup(task, robot, problem, options, scene, ground)
+    return options
 
 
 def resolve_path_rows(task: Task) -> tuple[int, ...]:
