@@ -104,3 +104,70 @@ def test_arguments_that_are_not_plain_variables_fall_back_to_casadis_derivatives
     scaled = dataclasses.replace(block, arguments=(2 * block.arguments[0],) + block.arguments[1:])
     assert repeated_block_derivatives(m.w, m.p, m.f, m.g, (scaled,)) == {}
     assert set(repeated_block_derivatives(m.w, m.p, m.f, m.g, m.repeated)) == {"jac_g", "hess_lag"}
+
+
+def test_an_opti_problems_repeated_rows_give_casadis_derivatives_and_solution():
+    """`RepeatedRows` (the exact re-solves' shooting steps): a pendulum's RK4 steps recorded
+    as repeated rows of an Opti problem, with a row of their own between them; the
+    scattered Jacobian and Hessian equal CasADi's, and IPOPT reaches the same solution."""
+    from tfcontact.ocp.nodes import RepeatedRows
+
+    x, u, x_next = ca.SX.sym("x", 2), ca.SX.sym("u"), ca.SX.sym("x_next", 2)
+
+    def rhs(s):
+        return ca.vertcat(s[1], -9.81 * ca.sin(s[0]) + u * ca.cos(s[0]))
+
+    h = 0.05
+    k1 = rhs(x)
+    k2 = rhs(x + h / 2 * k1)
+    k3 = rhs(x + h / 2 * k2)
+    k4 = rhs(x + h * k3)
+    step = ca.Function("step", [x, u, x_next], [x_next - x - h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
+
+    def build(recorded: bool):
+        opti = ca.Opti()
+        rows = RepeatedRows(opti)
+        states = [opti.variable(2) for _ in range(9)]
+        controls = opti.variable(8)
+        target = opti.parameter()
+        opti.subject_to(states[0] == [0.1, 0.0])
+        for k in range(8):
+            if recorded:
+                rows.zero(step, states[k], controls[k], states[k + 1])
+            else:
+                opti.subject_to(step(states[k], controls[k], states[k + 1]) == 0)
+            opti.subject_to(ca.sin(states[k + 1][0]) * controls[k] <= 3.0)  # not repeated
+        opti.subject_to(opti.bounded(-4, controls, 4))
+        opti.minimize(ca.sumsqr(controls) + 100 * (states[-1][0] - target) ** 2)
+        opti.set_value(target, 0.6)
+        return opti, rows
+
+    opti, rows = build(True)
+    derivatives = rows.derivative_options(threads=2)
+    assert set(derivatives) == {"jac_g", "hess_lag"}
+    assert RepeatedRows(ca.Opti()).derivative_options() == {}
+    nlp_x, nlp_p = ca.SX.sym("x", opti.nx), ca.SX.sym("p", opti.np)
+    f, g = ca.Function("nlp", [opti.x, opti.p], [opti.f, opti.g]).expand()(nlp_x, nlp_p)
+    jac_g, hess_lag = casadi_derivatives(nlp_x, nlp_p, f, g)
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        w, p = rng.normal(size=opti.nx), rng.normal(size=opti.np)
+        lam_f, lam_g = rng.normal(), rng.normal(size=opti.ng)
+        J_ref, J_ours = jac_g(w, p)[1], derivatives["jac_g"](w, p)[1]
+        H_ref = hess_lag(w, p, lam_f, lam_g)
+        H_ours = derivatives["hess_lag"](w, p, lam_f, lam_g)
+        for ref, value in ((J_ref, J_ours), (H_ref, H_ours)):
+            scale = np.max(np.abs(ref.full()))
+            assert scale > 0.1
+            np.testing.assert_allclose(value.full(), ref.full(), rtol=0, atol=1e-13 * scale)
+
+    solutions = []
+    for recorded in (True, False):
+        opti, rows = build(recorded)
+        opti.solver("ipopt", {"print_time": False, "expand": True, **rows.derivative_options()},
+                    {"print_level": 0, "sb": "yes", "tol": 1e-12})
+        solution = opti.solve()
+        kind = solution.opti.debug.casadi_solver.get_function("nlp_hess_l").class_name()
+        assert kind == ("MXFunction" if recorded else "SXFunction")
+        solutions.append(solution.value(opti.x))
+    np.testing.assert_allclose(solutions[0], solutions[1], atol=1e-8)

@@ -1,5 +1,6 @@
 """Process-wide native resources (tfcontact.native): the BLAS thread count is set for a
-block and restored, freed memory is collected and trimmed."""
+block and restored, freed memory is collected and trimmed, the peak memory is read and
+restarted."""
 
 from __future__ import annotations
 
@@ -7,7 +8,13 @@ import weakref
 
 import pytest
 
-from tfcontact.native import blas_threads, casadi_openblas, return_memory
+from tfcontact.native import (
+    blas_threads,
+    casadi_openblas,
+    peak_memory,
+    reset_peak_memory,
+    return_memory,
+)
 
 
 def test_blas_threads_are_set_for_the_block_and_restored():
@@ -40,3 +47,19 @@ def test_return_memory_collects_unreachable_cycles():
     del node
     return_memory()
     assert alive() is None
+
+
+def test_peak_memory_sees_a_block_that_is_gone_until_it_is_reset():
+    """The high-water mark keeps 300 MB that were touched and freed; a reset forgets them."""
+    import numpy as np
+
+    reset_peak_memory()
+    before = peak_memory()
+    if before is None:
+        pytest.skip("no /proc high-water mark here")
+    block = np.ones(300 * 2**20 // 8)
+    del block
+    return_memory()
+    assert peak_memory() >= before + 0.25
+    reset_peak_memory()
+    assert peak_memory() < before + 0.25

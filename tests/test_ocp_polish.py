@@ -320,8 +320,95 @@ def test_a_capped_re_solve_reports_progress_and_fails_honestly(monkeypatch, caps
     assert "    iteration 5: objective" in out and "    iteration 10: objective" in out
     assert plan.ipopt_status == "Maximum_Iterations_Exceeded" and plan.iterations == 12
     assert plan.status == "nlp_failed" and not plan.success
+    # where its time went: the build, IPOPT, and CasADi's evaluations inside IPOPT
+    assert 0 < plan.evaluation_time < plan.ipopt_time
+    assert 0 < plan.build_time and plan.build_time + plan.ipopt_time <= plan.solve_time
+    assert plan.n_variables > 10 * 8 * 2 and plan.n_constraints > 10 * 2 * 8
+    assert f"{plan.n_variables} variables, {plan.n_constraints} constraints" in plan.summary()
 
 
 def test_blas_threads_is_validated():
     with pytest.raises(InvalidInput, match="blas_threads"):
         polish.PolishOptions(blas_threads=0)
+
+
+def test_ldl_solves_give_qrs_dynamics():
+    """`HybridDynamics(ldl=True)` (M(q) and the Delassus matrix by LDL^T) gives the QR
+    form's right-hand sides, forces and impacts on the monoped, at random states."""
+    from tfcontact.scenes.monoped import monoped_problem
+
+    cls = monoped_problem("reduced").problem.system.cls
+    qr, ldl = polish.HybridDynamics(cls), polish.HybridDynamics(cls, ldl=True)
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        x = np.concatenate([[rng.uniform(-1, 1), rng.uniform(0.3, 0.5)],
+                            rng.uniform(-1, 1, 2), rng.normal(size=4)])
+        u = rng.normal(size=2)
+        for mode in (polish.STICK, "slip+", "slip-", polish.FLIGHT):
+            np.testing.assert_allclose(np.asarray(ldl.rhs[mode](x, u)),
+                                       np.asarray(qr.rhs[mode](x, u)), rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(np.asarray(ldl.force(x, u)), np.asarray(qr.force(x, u)),
+                                   rtol=1e-9, atol=1e-9)
+        for a, b in zip(ldl.impact(x), qr.impact(x), strict=True):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-9, atol=1e-9)
+    count = {name: dyn.shooting(polish.STICK, 2).n_instructions()
+             for name, dyn in (("qr", qr), ("ldl", ldl))}
+    assert count["ldl"] < count["qr"]
+
+
+@pytest.mark.parametrize("integrator, substeps, steps", [("rk4", 2, 2), ("radau", 1, 1)])
+def test_element_derivatives_are_casadis_own_on_the_re_solves_nlp(monkeypatch, integrator,
+                                                                   substeps, steps):
+    """The exact re-solve of the full monoped task (three touchdowns inside intervals:
+    pieces whose step length is a switch time's) with `element_derivatives`: the
+    scattered Jacobian and Hessian of its NLP (shooting steps or collocation elements,
+    contact and path rows, one function each) equal CasADi's own derivatives of the
+    same NLP at random points."""
+    import casadi as ca
+
+    from tfcontact.ocp import nodes
+    from tfcontact.scenes.monoped import monoped_problem
+    from tfcontact.scenes.monoped_exact import EXACT_TASK
+
+    captured = {}
+    recorded = nodes.RepeatedRows.derivative_options
+
+    def capture(rows, threads=1):
+        captured["opti"], captured["ours"] = rows.opti, recorded(rows, threads)
+        raise StopIteration  # built: no solve
+
+    monkeypatch.setattr(nodes.RepeatedRows, "derivative_options", capture)
+    plan = np.load(RK4_PLAN)
+    with pytest.raises(StopIteration):
+        polish.polish_contact(
+            monoped_problem(EXACT_TASK).problem, load_resolved_plan(RK4_PLAN).phases,
+            polish.PolishOptions(substeps=substeps, steps_per_node=steps,
+                                 integrator=integrator, painleve_margin=0.0,
+                                 element_derivatives=True, threads=2),
+            guess=(plan["t"], plan["x"], plan["u"]), verbose=False)
+    opti, ours = captured["opti"], captured["ours"]
+    x, p = ca.SX.sym("x", opti.nx), ca.SX.sym("p", opti.np)
+    f, g = ca.Function("nlp", [opti.x, opti.p], [opti.f, opti.g]).expand()(x, p)
+    solver = ca.nlpsol("own", "ipopt", {"x": x, "p": p, "f": f, "g": g}, {"print_time": False})
+    jac_g, hess_lag = solver.get_function("nlp_jac_g"), solver.get_function("nlp_hess_l")
+    rng = np.random.default_rng(11)
+    guess = np.asarray(opti.debug.value(opti.x, opti.initial())).ravel()
+    for _ in range(2):
+        # near the guess (far from it the steps and the leg's dynamics blow up)
+        w = guess + 1e-3 * rng.normal(size=opti.nx)
+        lam_f, lam_g = rng.normal(), rng.normal(size=opti.ng)
+        J_ref, J_ours = jac_g(w, 1.0)[1], ours["jac_g"](w, 1.0)[1]
+        H_ref, H_ours = hess_lag(w, 1.0, lam_f, lam_g), ours["hess_lag"](w, 1.0, lam_f, lam_g)
+        for ref, value in ((J_ref, J_ours), (H_ref, H_ours)):
+            ref, value = ref.full(), value.full()
+            assert np.all(np.isfinite(ref)) and np.max(np.abs(ref)) > 0.1
+            np.testing.assert_allclose(value, ref, rtol=0, atol=1e-9 * np.max(np.abs(ref)))
+
+
+def test_element_derivative_options_are_validated():
+    with pytest.raises(InvalidInput, match="`element_derivatives` must be True or False"):
+        polish.PolishOptions(element_derivatives=1)
+    with pytest.raises(InvalidInput, match="`ldl` must be True or False"):
+        polish.PolishOptions(ldl="yes")
+    with pytest.raises(InvalidInput, match="threads"):
+        polish.PolishOptions(threads=0)

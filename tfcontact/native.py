@@ -3,7 +3,8 @@
 IPOPT's linear algebra runs MUMPS on CasADi's bundled OpenBLAS, whose thread count is a
 process-wide setting; and glibc keeps freed heap pages of large NLPs unless asked to hand
 them back. Both are reached through ctypes here, and nowhere else: `blas_threads` sets the
-count for a block and restores it after, `return_memory` trims the heap between solves.
+count for a block and restores it after, `return_memory` trims the heap between solves,
+and `peak_memory` reads the kernel's high-water mark (`reset_peak_memory` restarts it).
 """
 
 from __future__ import annotations
@@ -62,3 +63,24 @@ def return_memory() -> None:
         ctypes.CDLL("libc.so.6").malloc_trim(0)
     except (OSError, AttributeError):
         pass
+
+
+def reset_peak_memory() -> None:
+    """Start `peak_memory` afresh (Linux: the kernel's high-water mark of the resident set,
+    reset through /proc/self/clear_refs); elsewhere nothing."""
+    try:
+        Path("/proc/self/clear_refs").write_text("5")
+    except OSError:
+        pass
+
+
+def peak_memory() -> float | None:
+    """The process's peak resident memory [GB] since the last `reset_peak_memory` (Linux's
+    VmHWM); None where /proc does not tell."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 2**20  # kB
+    except OSError:
+        pass
+    return None

@@ -1,6 +1,7 @@
 """MPCCs: relaxations and the homotopy that solves them with IPOPT."""
 
-from tfcontact.mpcc.problem import Mpcc
+from tfcontact.mpcc.derivatives import repeated_block_derivatives
+from tfcontact.mpcc.problem import Mpcc, RepeatedBlock
 from tfcontact.mpcc.relaxation import RELAXATIONS, L1Penalty, LinfPenalty, Relaxation, Scholtes
 from tfcontact.mpcc.solver import (
     LINEAR_SOLVERS,
@@ -26,6 +27,8 @@ __all__ = [
     "MpccSolver",
     "MpccStatus",
     "Relaxation",
+    "RepeatedBlock",
     "Scholtes",
+    "repeated_block_derivatives",
     "solve",
 ]

@@ -55,7 +55,8 @@ def _scatter(n_rows: int, n_cols: int, rows: np.ndarray, cols: np.ndarray
 
 
 def _nonzeros(matrix: ca.MX) -> ca.MX:
-    return matrix.nz[:] if matrix.nnz() else ca.MX(0, 1)
+    # a column (the nonzeros of a row vector come as a row)
+    return ca.vec(matrix.nz[:]) if matrix.nnz() else ca.MX(0, 1)
 
 
 def repeated_block_derivatives(x: ca.SX, p: ca.SX, f: ca.SX, g: ca.SX,
@@ -168,7 +169,8 @@ def _element_part(block: RepeatedBlock, index: np.ndarray, symbols: tuple[ca.SX,
 
 
 def _check_values(x: ca.SX, p: ca.SX, g: ca.SX, blocks: tuple[RepeatedBlock, ...]) -> None:
-    """The blocks' rows of g equal their functions at a random point."""
+    """The blocks' rows of g equal their functions at a random point (NaN where both are:
+    a random step length can blow a shooting step up)."""
     rng = np.random.default_rng(0)
     x_value, p_value = rng.uniform(0.1, 1.0, x.numel()), rng.uniform(0.1, 1.0, p.numel())
     g_value = np.asarray(ca.Function("g", [x, p], [g])(x_value, p_value)).reshape(-1)
@@ -177,7 +179,7 @@ def _check_values(x: ca.SX, p: ca.SX, g: ca.SX, blocks: tuple[RepeatedBlock, ...
         args = [ca.Function("a", [x, p], [a])(x_value, p_value) for a in block.arguments]
         out = np.asarray(block.function.map(E)(*args))
         expected = g_value[block.rows.T]  # (n_r, E)
-        if not np.allclose(out, expected, rtol=1e-9, atol=1e-9):
+        if not np.allclose(out, expected, rtol=1e-9, atol=1e-9, equal_nan=True):
             raise InvalidInput(
                 f"the MPCC's repeated block `{block.function.name()}` does not give its "
                 f"rows of g (largest difference {np.max(np.abs(out - expected)):.3g})"

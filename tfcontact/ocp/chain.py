@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 
 from tfcontact.errors import InvalidInput
-from tfcontact.native import return_memory
+from tfcontact.native import peak_memory, reset_peak_memory, return_memory
 from tfcontact.ocp.contact import ContactProblem, ContactResult
 from tfcontact.ocp.nodes import CAPPED
 from tfcontact.ocp.polish import (
@@ -60,7 +60,10 @@ class ResolveLevel:
 @dataclass(frozen=True)
 class ChainStep:
     """One solve of a chain: its name, IPOPT status, iterations, seconds, objective and
-    the plan's status."""
+    the plan's status; where known, where its time went (`build`: the NLP and its
+    derivatives; `evaluations`: CasADi's function evaluations inside IPOPT; `ipopt`: IPOPT
+    in all; seconds), the NLP's size and the process's peak memory during it [GB] (None:
+    not measured)."""
 
     name: str
     ipopt_status: str
@@ -68,10 +71,27 @@ class ChainStep:
     seconds: float
     objective: float
     status: str
+    build: float | None = None
+    evaluations: float | None = None
+    ipopt: float | None = None
+    n_variables: int = 0
+    peak_memory: float | None = None
 
     @classmethod
-    def of(cls, name: str, plan: PolishedPlan, seconds: float) -> ChainStep:
-        return cls(name, plan.ipopt_status, plan.iterations, seconds, plan.cost, plan.status)
+    def of(cls, name: str, plan: PolishedPlan, seconds: float,
+           peak_memory: float | None = None) -> ChainStep:
+        return cls(name, plan.ipopt_status, plan.iterations, seconds, plan.cost, plan.status,
+                   build=plan.build_time, evaluations=plan.evaluation_time,
+                   ipopt=plan.ipopt_time, n_variables=plan.n_variables,
+                   peak_memory=peak_memory)
+
+    def timing(self) -> str:
+        """Where the step's time went, or "" if not known."""
+        if self.build is None:
+            return ""
+        memory = "" if self.peak_memory is None else f", peak {self.peak_memory:.2f} GB"
+        return (f"; build {self.build:.0f} s, IPOPT {self.ipopt:.0f} s (evaluations "
+                f"{self.evaluations:.0f} s), {self.n_variables} variables{memory}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,7 +134,7 @@ class ResolveChain:
         for step in self.steps:
             lines.append(f"  {step.name}: {step.status} (IPOPT {step.ipopt_status}, "
                          f"{step.iterations} iterations, {step.seconds:.0f} s, objective "
-                         f"{step.objective:.6g})")
+                         f"{step.objective:.6g}{step.timing()})")
         if self.plan is not None:
             lines.append(self.plan.summary())
             lines.append(f"path constraints: largest violation at the nodes "
@@ -170,9 +190,10 @@ def resolve_chain(levels: Sequence[ResolveLevel], phases: tuple[Phase, ...],
             if verbose:
                 print(f"exact re-solve: {label}", flush=True)
             begin = time.perf_counter()
+            reset_peak_memory()
             plan = polish_contact(level.problem, phases, options, guess=guess, verbose=verbose)
+            steps.append(ChainStep.of(label, plan, time.perf_counter() - begin, peak_memory()))
             return_memory()
-            steps.append(ChainStep.of(label, plan, time.perf_counter() - begin))
             guess, phases = (plan.t, plan.x, plan.u), plan.phases
             if plan.ipopt_status != CAPPED:
                 break

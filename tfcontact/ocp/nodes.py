@@ -1,7 +1,8 @@
 """What the exact re-solves (`polish`: one contact; `stances`: several) share: a contact
 problem's rows and costs as functions of a node's state x = (q, v), its time and control,
 a guess read off a sampled trajectory, the collocation equations of an element, the
-Delassus solves, and an Opti solve that reports its progress and stops on Ctrl-C."""
+Delassus solves, an Opti solve that reports its progress and stops on Ctrl-C, and the
+rows an Opti problem repeats (`RepeatedRows`), differentiated once per function."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import casadi as ca
 import numpy as np
 
 from tfcontact import interrupt
+from tfcontact.mpcc import RepeatedBlock, repeated_block_derivatives
 from tfcontact.native import blas_threads
 
 PROGRESS_EVERY = 250
@@ -64,7 +66,7 @@ class NodeFunctions:
         and time t (the other entries zero)."""
         system = self.problem.system
         n_q = system.cls.n_q
-        entries = [ca.MX(0)] * system.y.numel()
+        entries = [ca.SX(0) if isinstance(x, ca.SX) else ca.MX(0)] * system.y.numel()
         for i in range(n_q):
             entries[system.q_index.start + i] = x[i]
             entries[system.v_index.start + i] = x[n_q + i]
@@ -125,3 +127,53 @@ def spd_solve(matrix: ca.SX, rhs: ca.SX) -> ca.SX:
     right-hand side's Hessian took 39.6k instead of 116.6k instructions (benchmarks/legged.md)."""
     d, lt, p = ca.ldl(matrix)
     return ca.ldl_solve(rhs, d, lt, p)
+
+
+class RepeatedRows:
+    """Rows of an Opti problem that one function gives at many places (a shooting step's
+    or a collocation element's equations, one per step), recorded as they are added so
+    that the solver differentiates each function once and scatters its derivatives
+    (`tfcontact.mpcc.derivatives`) instead of differentiating the inlined graph of every
+    copy. The values, and so the NLP, are the same; its derivatives agree up to
+    round-off (sums in another order)."""
+
+    def __init__(self, opti: ca.Opti) -> None:
+        self.opti = opti
+        self._groups: dict[int, tuple[ca.Function, list, list]] = {}
+
+    def zero(self, function: ca.Function, *arguments) -> None:
+        """Constrain function(*arguments) == 0 (one column output; each argument a column
+        of Opti variables, parameters or constants) and record its rows."""
+        self.bounded(0.0, function, 0.0, *arguments)
+
+    def bounded(self, lower, function: ca.Function, upper, *arguments) -> None:
+        """Constrain lower <= function(*arguments) <= upper and record its rows."""
+        first = self.opti.ng
+        value = function(*arguments)
+        if np.all(np.asarray(lower) == np.asarray(upper)):
+            self.opti.subject_to(value == lower)
+        else:
+            self.opti.subject_to(self.opti.bounded(lower, value, upper))
+        _, calls, rows = self._groups.setdefault(id(function), (function, [], []))
+        calls.append(arguments)
+        rows.append(np.arange(first, self.opti.ng))
+
+    def derivative_options(self, threads: int = 1) -> dict[str, ca.Function]:
+        """nlpsol options `jac_g` and `hess_lag` for the Opti problem as it stands (call
+        after its last row and objective); empty if nothing was recorded."""
+        if not self._groups:
+            return {}
+        opti = self.opti
+        x, p = ca.SX.sym("x", opti.nx), ca.SX.sym("p", opti.np)
+        f, g = ca.Function("nlp", [opti.x, opti.p], [opti.f, opti.g]).expand()(x, p)
+        groups = list(self._groups.values())
+        columns = [ca.horzcat(*[ca.vertcat(call[i]) for call in calls])
+                   for function, calls, _ in groups for i in range(function.n_in())]
+        values = ca.Function("arguments", [opti.x, opti.p], columns).expand()(x, p)
+        values = [values] if isinstance(values, ca.SX) else list(values)
+        blocks = []
+        for function, _, rows in groups:
+            arguments, values = values[:function.n_in()], values[function.n_in():]
+            blocks.append(RepeatedBlock(function=function, arguments=tuple(arguments),
+                                        rows=np.array(rows)))
+        return repeated_block_derivatives(x, p, f, g, tuple(blocks), threads=threads)

@@ -50,10 +50,12 @@ from tfcontact.fesd.tableau import RadauIIA
 from tfcontact.ocp.contact import ContactProblem, ContactResult
 from tfcontact.ocp.nodes import (
     NodeFunctions,
+    RepeatedRows,
     collocation_residuals,
     interpolate,
     report_progress,
     solve_guarded,
+    spd_solve,
 )
 from tfcontact.verify import (
     LOCAL_DEFECT_IMPACT_WINDOW,
@@ -98,6 +100,19 @@ class PolishOptions:
         expand: expand the whole NLP into one SX graph (fast per iteration; the full task
             with 16 x 4 RK4 steps took more than 16 GB to build). False: each RK4 step is
             one SX function called from an MX graph (small, slower per iteration).
+        element_derivatives: differentiate each shooting step's (each collocation
+            element's) equations once per mode and step length and scatter them
+            (`tfcontact.ocp.nodes.RepeatedRows`) instead of letting CasADi differentiate
+            every inlined copy; likewise the contact's rows at the nodes and the path rows
+            (unless they depend on the time). A piece whose length a switch time sets gets
+            its step length as a variable, and the node states enter the running cost as
+            variables (the same values at a solution). Off by default: round-off
+            differs, and the re-solves' IPOPT paths depend on it.
+        threads: threads that evaluate the element derivatives (CasADi's thread map).
+        ldl: solve with M(q) and the contact's Delassus matrix by their LDL^T (no
+            pivoting: both are positive definite) instead of CasADi's symbolic QR; the
+            monoped's two-step RK4 shooting Hessian takes 147k instead of 306k
+            instructions in stick. Off by default (another IPOPT path).
         cone_margins: the continuation of the stick cone |lambda_t| <= c mu lambda_n, each
             NLP warm started from the last. With a slip phase only c = 1: the stick force
             reaches the cone's edge where the slip starts.
@@ -120,6 +135,9 @@ class PolishOptions:
     integrator: str = "rk4"
     radau_stages: int = 3
     expand: bool = True
+    element_derivatives: bool = False
+    threads: int = 1
+    ldl: bool = False
     baumgarte: float = 20.0
     painleve_margin: float = 0.05
     cone_margins: tuple[float, ...] = (1.0,)
@@ -146,6 +164,11 @@ class PolishOptions:
         positive_int(self.steps_per_node, "steps_per_node")
         positive_int(self.max_iter, "max_iter")
         positive_int(self.radau_stages, "radau_stages")
+        positive_int(self.threads, "threads")
+        for name in ("expand", "element_derivatives", "ldl"):
+            if not isinstance(getattr(self, name), bool):
+                raise InvalidInput(f"`{name}` must be True or False, got "
+                                   f"{getattr(self, name)!r}")
         if self.integrator not in ("rk4", "radau"):
             raise InvalidInput(f"`integrator` must be 'rk4' or 'radau', got {self.integrator!r}")
         if self.integrator == "radau" and self.steps_per_node != 1:
@@ -220,6 +243,11 @@ class PolishedPlan:
         ipopt_status: IPOPT's return status of the last NLP; iterations: over all NLPs.
         solve_time: seconds (build and solves); verification: the independent checks.
         integrator, substeps: the options' integrator and nodes or elements per interval.
+        build_time: seconds to build the NLP and its derivatives (before IPOPT's first
+            iteration); evaluation_time: seconds in CasADi's evaluations of the NLP's
+            functions during IPOPT; ipopt_time: seconds in IPOPT in all (evaluations
+            included; the rest is IPOPT's own, mostly MUMPS); None where not measured.
+        n_variables, n_constraints: the NLP's size.
     """
 
     phases: tuple[Phase, ...]
@@ -237,6 +265,11 @@ class PolishedPlan:
     history: tuple[tuple[float, str, int], ...] = field(default=())
     integrator: str = "rk4"
     substeps: tuple[int, ...] = ()
+    build_time: float | None = None
+    evaluation_time: float | None = None
+    ipopt_time: float | None = None
+    n_variables: int = 0
+    n_constraints: int = 0
 
     @property
     def solved(self) -> bool:
@@ -261,6 +294,10 @@ class PolishedPlan:
             f"polish: {self.integrator}, {_mesh(self.substeps, self.integrator)} per control "
             "interval",
             f"polish: objective {self.cost:.6g}; phases {switches}",
+            *([] if self.build_time is None else [
+                f"polish: {self.n_variables} variables, {self.n_constraints} constraints; "
+                f"build {self.build_time:.1f} s, IPOPT {self.ipopt_time:.1f} s (evaluations "
+                f"{self.evaluation_time:.1f} s)"]),
             f"polish: {self.verification.summary()}",
         ])
 
@@ -327,18 +364,23 @@ class HybridDynamics:
     `impact` (the post-impact state with J v+ = 0 and its impulse [N s]); `rk4` and
     `step` integrate a mode."""
 
-    def __init__(self, cls, alpha: float = 20.0) -> None:
+    def __init__(self, cls, alpha: float = 20.0, *, ldl: bool = False) -> None:
         q, v, u = cls.q, cls.v, cls.u
+        # M(q)'s sparse LDL^T and the Delassus matrix's: about half QR's derivatives
+        solve_delassus = spd_solve if ldl else ca.solve
         contact = cls.contacts[0]
         jac = ca.horzcat(contact.normal, contact.tangents)  # J = [n B], (n_v, 2)
         drift = ca.jacobian(ca.mtimes(jac.T, v), q) @ v  # (dJ/dt)^T v
         vel = ca.mtimes(jac.T, v)
         # Baumgarte: the contact's drift off gap = 0, v_n = 0 (and v_t = 0 in stick) decays
         stab = ca.vertcat(2 * alpha * vel[0] + alpha**2 * contact.gap, alpha * vel[1])
-        minv_f = ca.solve(cls.mass_matrix, cls.forces)
-        minv_j = ca.solve(cls.mass_matrix, jac)
+        if ldl:
+            minv_f, minv_j = cls.solve_mass(cls.forces), cls.solve_mass(jac)
+        else:
+            minv_f = ca.solve(cls.mass_matrix, cls.forces)
+            minv_j = ca.solve(cls.mass_matrix, jac)
         delassus = ca.mtimes(jac.T, minv_j)
-        lam = ca.solve(delassus, -(ca.mtimes(jac.T, minv_f) + drift + stab))
+        lam = solve_delassus(delassus, -(ca.mtimes(jac.T, minv_f) + drift + stab))
         x = ca.vertcat(q, v)
         self.mu = contact.mu
         self.rhs = {STICK: ca.Function("stick", [x, u], [ca.vertcat(v, minv_f + minv_j @ lam)]),
@@ -359,7 +401,7 @@ class HybridDynamics:
         self.gap = ca.Function("gap", [x], [contact.gap])
         self.velocity = ca.Function("velocity", [x], [vel])  # (v_n, v_t)
         self.delassus = ca.Function("delassus", [x], [delassus])
-        impulse = -ca.solve(delassus, vel)
+        impulse = -solve_delassus(delassus, vel)
         self.impact = ca.Function("impact", [x], [ca.vertcat(q, v + minv_j @ impulse), impulse])
         self._rk4: dict = {}
 
@@ -375,6 +417,34 @@ class HybridDynamics:
                 end = self.step(mode, end, u, h / steps)
             self._rk4[key] = ca.Function(f"rk4_{mode.replace('+', 'p').replace('-', 'm')}"
                                          f"_{steps}", [x, u, h], [end])
+        return self._rk4[key]
+
+    def shooting(self, mode: str, steps: int) -> ca.Function:
+        """(x, u, h, x_next) -> x_next - (`steps` RK4 steps of length h / steps from x):
+        one shooting node's equations."""
+        key = ("shooting", mode, steps)
+        if key not in self._rk4:
+            rk4 = self.rk4(mode, steps)
+            x = ca.SX.sym("x", rk4.size1_in(0))
+            u = ca.SX.sym("u", rk4.size1_in(1))
+            h = ca.SX.sym("h")
+            x_next = ca.SX.sym("x_next", x.numel())
+            self._rk4[key] = ca.Function(f"shooting_{len(self._rk4)}", [x, u, h, x_next],
+                                         [x_next - rk4(x, u, h)])
+        return self._rk4[key]
+
+    def collocation(self, mode: str, tableau) -> ca.Function:
+        """(x, z_1, ..., z_s, u, h) -> the collocation equations of one element of length
+        h from x (`collocation_residuals`, stacked)."""
+        key = ("collocation", mode, tableau.stages)
+        if key not in self._rk4:
+            n_x, n_u = self.rhs[mode].size1_in(0), self.rhs[mode].size1_in(1)
+            x = ca.SX.sym("x", n_x)
+            stages = [ca.SX.sym(f"z{j}", n_x) for j in range(tableau.stages)]
+            u, h = ca.SX.sym("u", n_u), ca.SX.sym("h")
+            residuals = collocation_residuals(self.rhs[mode], tableau, x, stages, u, h)
+            self._rk4[key] = ca.Function(f"collocation_{len(self._rk4)}", [x, *stages, u, h],
+                                         [ca.vertcat(*residuals)])
         return self._rk4[key]
 
     def step(self, mode: str, x, u, h):
@@ -444,7 +514,7 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     system = problem.system
     cls = system.cls
     _check_system(cls)
-    dyn = HybridDynamics(cls, options.baumgarte)
+    dyn = HybridDynamics(cls, options.baumgarte, ldl=options.ldl)
     radau = options.integrator == "radau"
     tableau = RadauIIA(options.radau_stages).tableau() if radau else None
     n_q, n_u = cls.n_q, cls.n_u
@@ -472,6 +542,7 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     terminal, terminal_fn = functions.terminal, functions.terminal_fn
 
     opti = ca.Opti()
+    repeated = RepeatedRows(opti) if options.element_derivatives else None
     controls = opti.variable(n_int, n_u) if n_u else ca.MX(n_int, 0)
     margin = opti.parameter()
     if n_u:
@@ -526,6 +597,43 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     cost = 0
     mode_index = 0
 
+    # With element derivatives, a node's path rows (if free of the time) and its contact
+    # rows are repeated rows too: one function each, differentiated once.
+    timed_path = path_fn is not None and ca.depends_on(path.expression,
+                                                       system.y[system.clock_index])
+    node_functions = {}
+
+    def node_function(kind):
+        if kind not in node_functions:
+            xs, us, ms = ca.SX.sym("x", 2 * n_q), ca.SX.sym("u", n_u), ca.SX.sym("margin")
+            if kind == "path":
+                n_path = path.expression.shape[0]
+                rows = [(np.broadcast_to(path.lower, n_path), path_fn(y_of(xs, 0.0), us),
+                         np.broadcast_to(path.upper, n_path))]
+            else:
+                rows = contact_row_values(xs, us, kind, ms)
+            node_functions[kind] = (
+                ca.Function(f"node_{kind.replace('+', 'p').replace('-', 'm')}", [xs, us, ms],
+                            [ca.vertcat(*(r[1] for r in rows))]),
+                np.concatenate([np.broadcast_to(r[0], r[1].shape[0]) for r in rows]),
+                np.concatenate([np.broadcast_to(r[2], r[1].shape[0]) for r in rows]))
+        return node_functions[kind]
+
+    def contact_row_values(x, u, mode, margin):
+        """(lower, value, upper) of the contact's rows in `mode`."""
+        if mode == STICK:
+            lam = dyn.force(x, u)
+            return [(0.0, lam[0], np.inf),
+                    (0.0, margin * dyn.mu * lam[0] - lam[1], np.inf),
+                    (0.0, margin * dyn.mu * lam[0] + lam[1], np.inf)]
+        if mode == FLIGHT:
+            return [(0.0, dyn.gap(x), np.inf)]
+        sign = 1.0 if mode == "slip+" else -1.0
+        lam_n, rate = dyn.slip_force[mode](x, u)
+        return [(0.0, lam_n, np.inf),
+                (1e-2, rate, np.inf),  # no Painleve: a unique normal force
+                (0.0, sign * dyn.velocity(x)[1], np.inf)]
+
     def constrain_node(x, t, u, mode):
         lower = np.concatenate([problem.q_lower, problem.v_lower])
         upper = np.concatenate([problem.q_upper, problem.v_upper])
@@ -533,7 +641,10 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
         if finite.any():
             opti.subject_to(opti.bounded(lower[finite], x[[int(i) for i in np.flatnonzero(finite)]],
                                          upper[finite]))
-        if path_fn is not None:
+        if path_fn is not None and repeated is not None and not timed_path:
+            function, lower, upper = node_function("path")
+            repeated.bounded(lower, function, upper, x, u, margin)
+        elif path_fn is not None:
             opti.subject_to(opti.bounded(np.broadcast_to(path.lower, path.expression.shape[0]),
                                          path_fn(y_of(x, t), u),
                                          np.broadcast_to(path.upper, path.expression.shape[0])))
@@ -546,19 +657,13 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
 
     def contact_rows(x, u, mode):
         if mode == STICK:
-            lam = dyn.force(x, u)
             stick_forces.append((x, u))
-            opti.subject_to(lam[0] >= 0)
-            opti.subject_to(margin * dyn.mu * lam[0] - lam[1] >= 0)
-            opti.subject_to(margin * dyn.mu * lam[0] + lam[1] >= 0)
-        elif mode == FLIGHT:
-            opti.subject_to(dyn.gap(x) >= 0)
-        else:
-            sign = 1.0 if mode == "slip+" else -1.0
-            lam_n, rate = dyn.slip_force[mode](x, u)
-            opti.subject_to(lam_n >= 0)
-            opti.subject_to(rate >= 1e-2)  # no Painleve: a unique normal force
-            opti.subject_to(sign * dyn.velocity(x)[1] >= 0)
+        if repeated is not None:
+            function, lower, upper = node_function(mode)
+            repeated.bounded(lower, function, upper, x, u, margin)
+            return
+        for lower, value, _ in contact_row_values(x, u, mode, margin):
+            opti.subject_to(value >= lower)
 
     for k in range(n_int):
         u_k = controls[k, :].T
@@ -581,6 +686,11 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
             h = (tb - ta) / n_steps
             if isinstance(h, ca.MX):
                 opti.subject_to(h <= 1.5 * dt / substeps[k])  # no long steps
+                if repeated is not None:  # a variable, so that the steps are repeated rows
+                    h_steps = opti.variable()
+                    opti.subject_to(h_steps == h)
+                    opti.set_initial(h_steps, (gb - ga) / n_steps)
+                    h = h_steps
             for i in range(n_steps):
                 if radau:  # one collocation element; its last stage is its end (c_s = 1)
                     t0 = ta + i * h
@@ -590,10 +700,15 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
                         opti.set_initial(z, interpolate(
                             guess_t, guess_x, ga + (i + tableau.c[j]) * (gb - ga) / n_steps))
                         stages.append(z)
-                    for j, (z, residual) in enumerate(zip(
-                            stages, collocation_residuals(dyn.rhs[mode], tableau, x, stages,
-                                                          u_k, h), strict=True)):
-                        opti.subject_to(residual == 0)
+                    element = None if repeated is None else dyn.collocation(mode, tableau)
+                    if element is not None:
+                        repeated.zero(element, x, *stages, u_k, h)
+                    residuals = (stages if element is not None else
+                                 collocation_residuals(dyn.rhs[mode], tableau, x, stages,
+                                                       u_k, h))
+                    for j, (z, residual) in enumerate(zip(stages, residuals, strict=True)):
+                        if element is None:
+                            opti.subject_to(residual == 0)
                         cost = cost + h * tableau.b[j] * running(
                             y_of(z, t0 + tableau.c[j] * h), u_k)
                         # a piece's last node at its end time exactly (ta + n h may differ
@@ -603,16 +718,21 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
                         constrain_node(z, t0 + tableau.c[j] * h, u_k, mode)
                     x = stages[-1]
                     continue
-                if options.expand:
-                    x_next = x
-                    for _ in range(options.steps_per_node):  # RK4 steps between two nodes
-                        x_next = dyn.step(mode, x_next, u_k, h / options.steps_per_node)
-                else:
-                    x_next = dyn.rk4(mode, options.steps_per_node)(x, u_k, h)
-                cost = cost + h / 2 * (running(y_of(x, ta + i * h), u_k)
-                                       + running(y_of(x_next, ta + (i + 1) * h), u_k))
+                x_start = x
                 x = opti.variable(2 * n_q)
-                opti.subject_to(x == x_next)
+                if repeated is not None:
+                    repeated.zero(dyn.shooting(mode, options.steps_per_node), x_start, u_k, h, x)
+                    x_next = x
+                else:
+                    if options.expand:
+                        x_next = x_start
+                        for _ in range(options.steps_per_node):  # RK4 steps between nodes
+                            x_next = dyn.step(mode, x_next, u_k, h / options.steps_per_node)
+                    else:
+                        x_next = dyn.rk4(mode, options.steps_per_node)(x_start, u_k, h)
+                    opti.subject_to(x == x_next)
+                cost = cost + h / 2 * (running(y_of(x_start, ta + i * h), u_k)
+                                       + running(y_of(x_next, ta + (i + 1) * h), u_k))
                 t_guess = ga + (i + 1) * (gb - ga) / n_steps
                 opti.set_initial(x, interpolate(guess_t, guess_x, t_guess))
                 nodes.append((tb if i == n_steps - 1 else ta + (i + 1) * h, x))
@@ -648,7 +768,10 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
                                      terminal_fn(y_end),
                                      np.broadcast_to(terminal.upper, terminal.expression.shape[0])))
     opti.minimize(cost + terminal_cost(y_end))
-    opti.solver("ipopt", {"print_time": False, "expand": options.expand},
+    derivatives = ({} if repeated is None
+                   else repeated.derivative_options(options.threads))
+    opti.solver("ipopt", {"print_time": False, "record_time": True, "expand": options.expand,
+                          **derivatives},
                 {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0,
                  "sb": "yes"})
     if verbose:
@@ -656,10 +779,19 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     history = []
     status, iterations = "", 0
     values = None
+    build_time = time.perf_counter() - start
+    evaluation_time = ipopt_time = 0.0
     for c in options.cone_margins:
         opti.set_value(margin, c)
+        begin = time.perf_counter()
         sol = solve_guarded(opti, options.blas_threads)
         stats = sol.stats()
+        in_ipopt = float(stats.get("t_wall_total", 0.0))
+        # the first solve builds the solver (CasADi's derivatives) before IPOPT starts
+        build_time += time.perf_counter() - begin - in_ipopt if not history else 0.0
+        ipopt_time += in_ipopt
+        evaluation_time += sum(float(v) for key, v in stats.items()
+                               if key.startswith("t_wall_nlp_"))
         status = str(stats.get("return_status", "unknown"))
         n_it = int(stats.get("iter_count", 0))
         iterations += n_it
@@ -705,7 +837,8 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
         contact_forces=forces, impact_impulses=impact_values, cost=float(sol.value(opti.f)),
         ipopt_status=status, iterations=iterations, solve_time=solve_time,
         verification=verification, history=tuple(history), integrator=options.integrator,
-        substeps=substeps)
+        substeps=substeps, build_time=build_time, evaluation_time=evaluation_time,
+        ipopt_time=ipopt_time, n_variables=int(opti.nx), n_constraints=int(opti.ng))
     if verbose:
         print(plan.summary(), flush=True)
     return plan
@@ -744,7 +877,7 @@ def verify_polished(problem: ContactProblem, phases: tuple[Phase, ...], t: np.nd
     for name, (value, shape) in expected.items():
         if value.shape != shape:
             raise InvalidInput(f"`{name}` has shape {value.shape}; the problem needs {shape}")
-    dyn = HybridDynamics(cls, options.baumgarte)
+    dyn = HybridDynamics(cls, options.baumgarte, ldl=options.ldl)
     forces, impulses = contact_values(t, x, u, tuple(phases), dyn, problem.horizon)
     clocks = np.arange(n_int + 1) * problem.horizon / n_int
     return _verify(problem, clocks=clocks, boundary_x=boundary_states, u=u, node_t=t,

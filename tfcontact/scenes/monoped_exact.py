@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from tfcontact.errors import InvalidInput
-from tfcontact.native import return_memory
+from tfcontact.native import peak_memory, reset_peak_memory, return_memory
 from tfcontact.ocp.chain import PATH_TOLERANCE, ChainStep, ResolveLevel, refine_by_defects
 from tfcontact.ocp.contact import ContactProblem
 from tfcontact.ocp.polish import (
@@ -200,6 +200,7 @@ class ScheduleTrial:
     schedule: Schedule
     plan: PolishedPlan
     seconds: float
+    peak_memory: float | None = None
 
 
 def search_schedule(hop: PolishedPlan, schedules: tuple[Schedule, ...], problem: ContactProblem,
@@ -216,9 +217,10 @@ def search_schedule(hop: PolishedPlan, schedules: tuple[Schedule, ...], problem:
             print(f"monoped: schedule {i + 1} of {len(schedules)}, {schedule}", flush=True)
         guess, phases = tiled_guess(hop, task, schedule)
         begin = time.perf_counter()
+        reset_peak_memory()
         plan = polish_contact(problem, phases, options, guess=guess, verbose=False)
+        trials.append(ScheduleTrial(schedule, plan, time.perf_counter() - begin, peak_memory()))
         return_memory()
-        trials.append(ScheduleTrial(schedule, plan, time.perf_counter() - begin))
         if verbose:
             print(f"  IPOPT {plan.ipopt_status}, {plan.iterations} iterations, "
                   f"{trials[-1].seconds:.0f} s, objective {plan.cost:.6g}", flush=True)
@@ -347,7 +349,8 @@ class TiledHops(ResolveStart):
             print(f"monoped: schedule found, {best.schedule}, flights of "
                   f"{best.schedule.flight_time:.4g} s", flush=True)
         steps = chain.steps + tuple(ChainStep.of(f"{first.name}, {trial.schedule}", trial.plan,
-                                                 trial.seconds) for trial in trials)
+                                                 trial.seconds, trial.peak_memory)
+                                    for trial in trials)
         plan = best.plan
         return Start((plan.t, plan.x, plan.u), plan.phases, steps, skip_levels=1)
 
