@@ -120,3 +120,35 @@ def test_legged_bench_reports_a_whole_plan_stage_by_stage(load_script, monkeypat
     assert row["discovery iterations"] == "-" == row["re-solve iterations"]
     lines = bench.markdown_table(bench.WHOLE_COLUMNS, [row]).splitlines()
     assert lines[0].count("|") == len(bench.WHOLE_COLUMNS) + 1
+
+
+def test_monoped_bench_tabulates_each_step_and_sets_its_route(load_script, monkeypatch):
+    """`rows`: a plan's steps from its trajectory's chain steps (a discovery step without
+    timings shows "-"); `child`: the "plain" route re-solves without element derivatives,
+    the "element" route with the shipped ones."""
+    import tfcontact.cli
+    import tfcontact.scenes.monoped_exact as monoped_exact
+
+    bench = load_script("bench_monoped")
+    solver = {"objective": 176.43, "steps": [
+        {"name": "time-freezing homotopy", "ipopt_status": "Solve_Succeeded",
+         "iterations": 778, "seconds": 8.1, "objective": 50.9, "status": "failed"},
+        {"name": "exact re-solve, 8 nodes", "ipopt_status": "Solve_Succeeded",
+         "iterations": 458, "seconds": 41.7, "objective": 150.268, "status": "converged",
+         "build": 2.5, "evaluations": 20.25, "ipopt": 38.0, "n_variables": 1675,
+         "peak_memory": 0.61}]}
+    plan, steps = bench.rows("element", {"status": "converged"}, solver, 215.0, 0.7)
+    assert plan["objective"] == 176.43 and plan["peak memory [GB]"] == 0.7
+    assert steps[0]["build [s]"] == "-" and steps[0]["variables"] == "-"
+    assert steps[1]["evaluations [s]"] == 20.25 and steps[1]["variables"] == 1675
+    table = bench.markdown_table(bench.STEP_COLUMNS, steps).splitlines()
+    assert "| 20.25 | 1675 | 0.61 | 150.268 | converged |" in table[3]
+
+    seen = []
+    monkeypatch.setattr(monoped_exact, "RESOLVE_DERIVATIVES", monoped_exact.RESOLVE_DERIVATIVES)
+    monkeypatch.setattr(tfcontact.cli, "main", lambda argv: seen.append(
+        (argv, monoped_exact.resolve_options(substeps=2).element_derivatives)) or 0)
+    assert bench.child("element", "reduced", "out") == 0
+    assert bench.child("plain", "reduced", "out") == 0
+    assert [s[1] for s in seen] == [True, False]
+    assert seen[0][0] == ["plan", "monoped", "--task", "reduced", "--out", "out", "--force"]

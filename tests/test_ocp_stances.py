@@ -65,16 +65,20 @@ def two_drops():
     return p, stances, (t, x, np.zeros((5, 4))), (t1, t2)
 
 
-@pytest.mark.parametrize(("integrator", "inverse_dynamics"),
-                         [("rk4", False), ("radau", False), ("radau", True)])
-def test_two_drops_touch_down_at_the_free_fall_times_and_stop(integrator, inverse_dynamics):
+@pytest.mark.parametrize(("integrator", "inverse_dynamics", "element_derivatives"),
+                         [("rk4", False, False), ("rk4", False, True), ("radau", False, False),
+                          ("radau", False, True), ("radau", True, False)])
+def test_two_drops_touch_down_at_the_free_fall_times_and_stop(integrator, inverse_dynamics,
+                                                              element_derivatives):
     """Both masses dropped, the first with a horizontal speed: each touchdown at
     sqrt(2 h / g) (RK4 and Radau IIA integrate free fall exactly), the impact leaves it at rest
     (Lambda_t = -m v_x inside the cone), and the multi-contact reference agrees; Radau in
-    both forms of the dynamics (explicit and inverse dynamics). The guess is 10 ms off: the
-    re-solve moves the switches to the closed forms."""
+    both forms of the dynamics (explicit and inverse dynamics), and the explicit one with
+    its elements differentiated once each (`element_derivatives`). The guess is 10 ms off:
+    the re-solve moves the switches to the closed forms."""
     p, stances, guess, (t1, t2) = two_drops()
-    options = StanceOptions(tol=1e-10, integrator=integrator, inverse_dynamics=inverse_dynamics)
+    options = StanceOptions(tol=1e-10, integrator=integrator, inverse_dynamics=inverse_dynamics,
+                            element_derivatives=element_derivatives, threads=2)
     plan = resolve_stances(p, stances, options, guess=guess, verbose=False)
     assert plan.solved, plan.ipopt_status
     assert [s.closed for s in plan.stances] == [(), (0,), (0, 1)]
@@ -106,14 +110,21 @@ def test_a_capped_nlp_solved_again_from_its_iterate_converges():
     assert runs[5].stances[2].start == pytest.approx(t2, abs=1e-7)
     with pytest.raises(InvalidInput, match="capped_restarts"):
         StanceOptions(capped_restarts=-1)
+    with pytest.raises(InvalidInput, match="`element_derivatives` must be True or False"):
+        StanceOptions(element_derivatives="yes")
+    with pytest.raises(InvalidInput, match="threads"):
+        StanceOptions(threads=0)
 
 
-@pytest.mark.parametrize("inverse_dynamics", [False, True])
-def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens(inverse_dynamics):
+@pytest.mark.parametrize(("inverse_dynamics", "element_derivatives"),
+                         [(False, False), (True, False), (False, True)])
+def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens(inverse_dynamics,
+                                                             element_derivatives):
     """Mass 1 rests and is pushed sideways as hard as it can while it sticks: the push
     reaches c mu m g (the cone's edge) and it does not move. Mass 2 lifts off at the
     control jump 0.2 s: the new control's vertical force is at least its weight. Both
-    forms of the dynamics (the forces as expressions or as variables)."""
+    forms of the dynamics (the forces as expressions or as variables), the explicit one
+    also with element derivatives."""
     margin = 0.9
     p = problem([0.0, 0.0, 1.0, 0.0], [0.0] * 4, horizon=0.4, n_intervals=4,
                 u_lower=[-20.0, 0.0, 0.0, 0.0], u_upper=[20.0, 0.0, 0.0, 40.0],
@@ -125,7 +136,8 @@ def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens(inverse_dynamics):
     x[:, 3] = np.where(t > 0.2, 0.5 * (t - 0.2), 0.0)
     stances = (Stance((0, 1), 0.0, 0.2), Stance((0,), 0.2, 0.4))
     plan = resolve_stances(p, stances, StanceOptions(cone_margin=margin, tol=1e-10,
-                                                     inverse_dynamics=inverse_dynamics),
+                                                     inverse_dynamics=inverse_dynamics,
+                                                     element_derivatives=element_derivatives),
                            guess=(t, x, np.zeros((4, 4))), verbose=False)
     assert plan.solved, plan.ipopt_status
     np.testing.assert_allclose(plan.u[:, 0], margin * MU * MASSES[0] * G, rtol=1e-6)

@@ -97,8 +97,8 @@ def repeated_block_derivatives(x: ca.SX, p: ca.SX, f: ca.SX, g: ca.SX,
     g_pieces, g_order = [g_r], [rest]
     H_r = ca.Function("rest_hessian", [x, p, lam_f_sx, lam_rest], [hess_rest])(
         X, P, lam_f, lam_g[rest.tolist()])
-    jr_rows, jr_cols = (np.asarray(a) for a in jac_rest.sparsity().get_triplet())
-    hr_rows, hr_cols = (np.asarray(a) for a in hess_rest.sparsity().get_triplet())
+    jr_rows, jr_cols = (np.asarray(a, dtype=int) for a in jac_rest.sparsity().get_triplet())
+    hr_rows, hr_cols = (np.asarray(a, dtype=int) for a in hess_rest.sparsity().get_triplet())
     # (rows, columns, values) of the entries, -1 for an entry to drop
     jac_triplets = ([rest[jr_rows]], [jr_cols], [_nonzeros(J_r)])
     hess_triplets = ([hr_rows], [hr_cols], [_nonzeros(H_r)])
@@ -154,14 +154,14 @@ def _element_part(block: RepeatedBlock, index: np.ndarray, symbols: tuple[ca.SX,
     H_e = element_hessian.map(E, *parallel)(V, lam_e)
     # The mapped outputs are horzcats: element e's nonzeros follow element e - 1's.
     elements = np.arange(E)[:, None]
-    jr, jc = (np.asarray(a)[None, :] for a in jac.sparsity().get_triplet())
+    jr, jc = (np.asarray(a, dtype=int)[None, :] for a in jac.sparsity().get_triplet())
     col = index[jc, elements]  # local argument a of element e is x[index[a, e]]
     row = block.rows[elements, jr]
     keep = col >= 0
     jacobian = (np.where(keep, row, -1).ravel(), np.where(keep, col, -1).ravel(),
                 _nonzeros(J_e))
     # The upper triangle of P^T H P: (a, b) with index[a] <= index[b]; duplicates add up
-    hr, hc = (np.asarray(a)[None, :] for a in hess.sparsity().get_triplet())
+    hr, hc = (np.asarray(a, dtype=int)[None, :] for a in hess.sparsity().get_triplet())
     ga, gb = index[hr, elements], index[hc, elements]
     keep = (ga >= 0) & (gb >= 0) & (ga <= gb)
     hessian = (np.where(keep, ga, -1).ravel(), np.where(keep, gb, -1).ravel(), _nonzeros(H_e))

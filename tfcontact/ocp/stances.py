@@ -56,6 +56,7 @@ from tfcontact.ocp.contact import ContactProblem, ContactResult
 from tfcontact.ocp.nodes import (
     CAPPED,
     NodeFunctions,
+    RepeatedRows,
     collocation_residuals,
     collocation_rows,
     interpolate,
@@ -145,6 +146,14 @@ class StanceOptions:
             against the explicit form's 0.52 s (whose Hessian alone took 0.32 s), but
             IPOPT needed far more of them: 245 iterations (144 s) explicit against more
             than 2000 for a one-step walk (benchmarks/legged.md).
+        element_derivatives: differentiate each collocation element's (each shooting
+            step's) equations, the contacts' rows at a node and the path rows (unless they
+            depend on the time) once per stance and scatter them
+            (`tfcontact.ocp.nodes.RepeatedRows`) instead of CasADi's derivatives of the
+            whole NLP; a piece whose length a touchdown time sets gets its step length as
+            a variable. The explicit form only (the lifted rows of `inverse_dynamics` are
+            CasADi's). Off by default: round-off differs, and with it IPOPT's path.
+        threads: threads that evaluate the element derivatives (CasADi's thread map).
         tol, max_iter: IPOPT's.
         capped_restarts: solves of the same NLP again, each from the last one's primal-dual
             iterate, after IPOPT stopped at `max_iter` (each up to `max_iter` more).
@@ -167,6 +176,8 @@ class StanceOptions:
     swing_heights: tuple[float | None, ...] = ()
     swing_fallback: bool = True
     inverse_dynamics: bool = False
+    element_derivatives: bool = False
+    threads: int = 1
     tol: float = 1e-8
     max_iter: int = 3000
     capped_restarts: int = 0
@@ -188,7 +199,11 @@ class StanceOptions:
         if self.inverse_dynamics and self.integrator == "rk4":
             raise InvalidInput("`inverse_dynamics` needs integrator='radau' (RK4 integrates "
                                "the explicit form a(x, u))")
-        for name in ("nodes", "steps_per_node", "radau_stages", "max_iter", "budget"):
+        if not isinstance(self.element_derivatives, bool):
+            raise InvalidInput(f"`element_derivatives` must be True or False, got "
+                               f"{self.element_derivatives!r}")
+        for name in ("nodes", "steps_per_node", "radau_stages", "max_iter", "budget",
+                     "threads"):
             positive_int(getattr(self, name), name)
         if (not isinstance(self.capped_restarts, int) or isinstance(self.capped_restarts, bool)
                 or self.capped_restarts < 0):
@@ -476,6 +491,31 @@ class StanceDynamics:
         return self._cache[key]
 
 
+    def shooting(self, closed: tuple[int, ...], steps: int) -> ca.Function:
+        """(x, u, h, x_next) -> x_next - `rk4(closed, steps)`(x, u, h): one shooting
+        node's equations."""
+        key = (closed, "shooting", steps)
+        if key not in self._cache:
+            x, u = ca.SX.sym("x", self._x.shape[0]), ca.SX.sym("u", self._u.shape[0])
+            h, x_next = ca.SX.sym("h"), ca.SX.sym("x_next", self._x.shape[0])
+            self._cache[key] = ca.Function(f"shooting_{len(self._cache)}", [x, u, h, x_next],
+                                           [x_next - self.rk4(closed, steps)(x, u, h)])
+        return self._cache[key]
+
+    def collocation(self, closed: tuple[int, ...], tableau) -> ca.Function:
+        """(x, z_1, ..., z_s, u, h) -> one collocation element's equations under stance
+        `closed` (`collocation_residuals`, stacked)."""
+        key = (closed, "collocation", tableau.stages)
+        if key not in self._cache:
+            x, u, h = ca.SX.sym("x", self._x.shape[0]), ca.SX.sym("u", self._u.shape[0]), \
+                ca.SX.sym("h")
+            stages = [ca.SX.sym(f"z{j}", self._x.shape[0]) for j in range(tableau.stages)]
+            residuals = collocation_residuals(self.rhs(closed), tableau, x, stages, u, h)
+            self._cache[key] = ca.Function(f"collocation_{len(self._cache)}",
+                                           [x, *stages, u, h], [ca.vertcat(*residuals)])
+        return self._cache[key]
+
+
 def cone_rows(values, sizes: list[int], mu: list[float], closed: tuple[int, ...],
               margin: float) -> list:
     """Expressions >= 0 that hold the closed contacts' forces (or impulses) in their cones:
@@ -626,6 +666,8 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                                "contacts")
 
     opti = ca.Opti()
+    repeated = (RepeatedRows(opti)
+                if options.element_derivatives and not options.inverse_dynamics else None)
     controls = opti.variable(n_int, n_u) if n_u else ca.MX(n_int, 0)
     if n_u:
         opti.subject_to(opti.bounded(np.tile(problem.u_lower, (n_int, 1)), controls,
@@ -659,15 +701,54 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
             opti.set_initial(lam, dyn.force(closed)(x_init, u_init))
         return a, lam
 
+    # With element derivatives, a node's path rows (if free of the time) and its contacts'
+    # rows are repeated rows: one function per stance (and switching contacts) each.
+    timed_path = path_fn is not None and ca.depends_on(path.expression,
+                                                       system.y[system.clock_index])
+    node_functions: dict = {}
+
+    def node_function(key, rows_of):
+        """(function of (x, u), lower, upper) of the rows `rows_of(x, u)` gives as (lower,
+        value, upper) triples, built once per `key`."""
+        if key not in node_functions:
+            xs, us = ca.SX.sym("x", 2 * n_q), ca.SX.sym("u", n_u)
+            rows = rows_of(xs, us)
+            values = [ca.reshape(value, -1, 1) for _, value, _ in rows]
+            node_functions[key] = (
+                ca.Function(f"node_rows_{len(node_functions)}", [xs, us], [ca.vertcat(*values)]),
+                np.concatenate([np.broadcast_to(lo, v.shape[0]) for (lo, _, _), v
+                                in zip(rows, values, strict=True)]),
+                np.concatenate([np.broadcast_to(up, v.shape[0]) for (_, _, up), v
+                                in zip(rows, values, strict=True)]))
+        return node_functions[key]
+
     def constrain_node(x, t, u, closed, force=None, switching=frozenset()):
         if bounded:
             opti.subject_to(opti.bounded(lower[bounded], x[bounded], upper[bounded]))
         if path_fn is not None:
             size = path.expression.shape[0]
-            opti.subject_to(opti.bounded(np.broadcast_to(path.lower, size),
-                                         path_fn(y_of(x, t), u),
-                                         np.broadcast_to(path.upper, size)))
+            if repeated is not None and not timed_path:
+                function, low, up = node_function("path", lambda xs, us: [(
+                    np.broadcast_to(path.lower, size), path_fn(y_of(xs, 0.0), us),
+                    np.broadcast_to(path.upper, size))])
+                repeated.bounded(low, function, up, x, u)
+            else:
+                opti.subject_to(opti.bounded(np.broadcast_to(path.lower, size),
+                                             path_fn(y_of(x, t), u),
+                                             np.broadcast_to(path.upper, size)))
         contact_rows(x, u, closed, force, switching)
+
+    def contact_row_values(x, u, closed, switching, lam) -> list:
+        """The stance's rows at node x as expressions >= 0 (`contact_rows`)."""
+        open_ = [i for i in range(cls.n_contacts) if i not in closed and i not in switching]
+        rows = [dyn.gaps(x)[open_]] if open_ else []
+        for i in open_:
+            if gains[i] is not None:  # no skimming: v_t = 0 where the gap is zero
+                rows.append(gains[i] * dyn.gaps(x)[i] - dyn.slip_squared(x)[i])
+        if closed:
+            lam = dyn.force(closed)(x, u) if lam is None else lam
+            rows += cone_rows(lam, dyn.sizes(closed), dyn.mu, closed, options.cone_margin)
+        return rows
 
     def contact_rows(x, u, closed, force=None, switching=frozenset()):
         """The stance's rows at node x. `switching`: open contacts at their switch (the
@@ -675,6 +756,14 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
         rows are left out there: gap_i >= 0 would repeat the touchdown's equality, and
         at zero gap K gap_i - ||v_t||^2 >= 0 holds only with v_t = 0, a row whose gradient
         in v vanishes there (its multiplier unbounded: IPOPT's convergence suffers)."""
+        if repeated is not None and force is None:
+            key = ("contacts", tuple(closed), frozenset(switching))
+            function, low, up = node_function(key, lambda xs, us: [
+                (0.0, row, np.inf) for row in contact_row_values(xs, us, closed, switching,
+                                                                 None)])
+            if function.numel_out(0):
+                repeated.bounded(low, function, up, x, u)
+            return
         open_ = [i for i in range(cls.n_contacts) if i not in closed and i not in switching]
         if open_:
             opti.subject_to(dyn.gaps(x)[open_] >= 0)
@@ -728,6 +817,11 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
             n_steps = max(1 if tableau is not None else 2,
                           round(options.nodes * (gb - ga) / dt))
             h = (tb - ta) / n_steps
+            if repeated is not None and isinstance(h, ca.MX):
+                h_steps = opti.variable()  # a variable: the steps are then repeated rows
+                opti.subject_to(h_steps == h)
+                opti.set_initial(h_steps, (gb - ga) / n_steps)
+                h = h_steps
             for i in range(n_steps):
                 t0 = ta + i * h
                 if tableau is not None:  # one collocation element, its last stage its end
@@ -744,12 +838,17 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                                                  for z, (a, _) in zip(stages, terms,
                                                                       strict=True)], h)
                         forces = [lam for _, lam in terms]
+                    elif repeated is not None:
+                        repeated.zero(dyn.collocation(closed, tableau), x, *stages, u_k, h)
+                        residuals = [None] * len(stages)
+                        forces = [None] * len(stages)
                     else:
                         residuals = collocation_residuals(dyn.rhs(closed), tableau, x,
                                                           stages, u_k, h)
                         forces = [None] * len(stages)
                     for j, (z, residual) in enumerate(zip(stages, residuals, strict=True)):
-                        opti.subject_to(residual == 0)
+                        if residual is not None:
+                            opti.subject_to(residual == 0)
                         t_stage = t0 + tableau.c[j] * h
                         cost = cost + h * tableau.b[j] * running(y_of(z, t_stage), u_k)
                         last = i == n_steps - 1 and j == tableau.stages - 1
@@ -758,11 +857,17 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                                        landing if last else frozenset())
                     x = stages[-1]
                     continue
-                x_next = dyn.rk4(closed, options.steps_per_node)(x, u_k, h)
-                cost = cost + h / 2 * (running(y_of(x, t0), u_k)
-                                       + running(y_of(x_next, t0 + h), u_k))
+                x_start = x
                 x = opti.variable(2 * n_q)
-                opti.subject_to(x == x_next)
+                if repeated is not None:
+                    repeated.zero(dyn.shooting(closed, options.steps_per_node), x_start, u_k,
+                                  h, x)
+                    x_next = x
+                else:
+                    x_next = dyn.rk4(closed, options.steps_per_node)(x_start, u_k, h)
+                    opti.subject_to(x == x_next)
+                cost = cost + h / 2 * (running(y_of(x_start, t0), u_k)
+                                       + running(y_of(x_next, t0 + h), u_k))
                 opti.set_initial(x, interpolate(guess_t, guess_x,
                                                  ga + (i + 1) * (gb - ga) / n_steps))
                 t_node = tb if i == n_steps - 1 else t0 + h
@@ -807,7 +912,8 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     opti.minimize(cost + terminal_cost(y_end))
     # the lifted NLP expands into one SX graph cheaply (bolt's walk: 0.5 GB); the explicit
     # form's did not (more than 15 GB with RK4: `StanceDynamics.rk4`)
-    plugin = {"print_time": False, "expand": options.inverse_dynamics}
+    plugin = {"print_time": False, "expand": options.inverse_dynamics,
+              **({} if repeated is None else repeated.derivative_options(options.threads))}
     ipopt = {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0, "sb": "yes"}
     if verbose:
         report_progress(opti)

@@ -126,6 +126,17 @@ RADAU_CONE_MARGIN = 0.98
 (1.0) the 12-element plan stuck on the cone's edge in one interval, where the exact replay
 slipped and parted from it by 3.2."""
 
+RESOLVE_DERIVATIVES: dict[str, object] = {"element_derivatives": True, "threads": 2}
+"""How the chain's re-solves are differentiated (`PolishOptions.element_derivatives` and
+`threads`): each shooting step, collocation element, contact and path row once, evaluated
+on two threads. {}: CasADi differentiates each whole NLP, the route before 2026-11-28
+(`scripts/bench_monoped.py` runs both; benchmarks/monoped_bench.md)."""
+
+
+def resolve_options(**settings) -> PolishOptions:
+    """The chain's `PolishOptions`: `settings` with `RESOLVE_DERIVATIVES`."""
+    return PolishOptions(**{**RESOLVE_DERIVATIVES, **settings})
+
 
 def tiled_guess(hop: PolishedPlan, task: MonopedTask = EXACT_TASK,
                 schedule: Schedule = HAND_SET_SCHEDULE
@@ -232,7 +243,7 @@ def search_schedule(hop: PolishedPlan, schedules: tuple[Schedule, ...], problem:
 def radau_options(substeps: int | tuple[int, ...] = RADAU_ELEMENTS) -> PolishOptions:
     """TF-9's scheme (Radau IIA, order 5) on `substeps` elements per control interval,
     the stick forces kept 2 % inside the friction cone (`RADAU_CONE_MARGIN`)."""
-    return PolishOptions(substeps=substeps, integrator="radau", painleve_margin=0.0,
+    return resolve_options(substeps=substeps, integrator="radau", painleve_margin=0.0,
                          cone_margins=(RADAU_CONE_MARGIN,))
 
 
@@ -270,11 +281,11 @@ def reduced_discovery(_: str | None = None) -> PlanSetup:
 def reduced_levels(setup: PlanSetup) -> list[ResolveLevel]:
     """The reduced hop's re-solves: 8 RK4 nodes per interval, then 16, then 16 x 2 steps."""
     return [ResolveLevel("exact re-solve, 8 nodes", setup.problem,
-                         PolishOptions(substeps=8, painleve_margin=0.0)),
+                         resolve_options(substeps=8, painleve_margin=0.0)),
             ResolveLevel("exact re-solve, 16 nodes", setup.problem,
-                         PolishOptions(substeps=16, painleve_margin=0.0)),
+                         resolve_options(substeps=16, painleve_margin=0.0)),
             ResolveLevel("exact re-solve, 16 nodes x 2 RK4 steps", setup.problem,
-                         PolishOptions(substeps=16, steps_per_node=2, painleve_margin=0.0))]
+                         resolve_options(substeps=16, steps_per_node=2, painleve_margin=0.0))]
 
 
 def full_setup(_: str | None = None) -> PlanSetup:
@@ -286,7 +297,8 @@ def full_levels(setup: PlanSetup) -> list[ResolveLevel]:
     """The full task's re-solves: with bump holes (8 nodes x 2 RK4 steps, then 16 x 2),
     then TF-9's ellipses (16 x 2), then `radau_levels`."""
     bumps = monoped_problem(dataclasses.replace(EXACT_TASK, hole_form="bump")).problem
-    rk4 = {n: PolishOptions(substeps=n, steps_per_node=2, painleve_margin=0.0) for n in (8, 16)}
+    rk4 = {n: resolve_options(substeps=n, steps_per_node=2, painleve_margin=0.0)
+           for n in (8, 16)}
     return [ResolveLevel("full task, bump holes, 8 nodes x 2 RK4 steps", bumps, rk4[8]),
             ResolveLevel("full task, bump holes, 16 nodes x 2 RK4 steps", bumps, rk4[16]),
             ResolveLevel("full task, TF-9's ellipses, 16 nodes x 2 RK4 steps", setup.problem,
