@@ -148,22 +148,40 @@ class RepeatedRows:
 
     def bounded(self, lower, function: ca.Function, upper, *arguments) -> None:
         """Constrain lower <= function(*arguments) <= upper and record its rows."""
-        first = self.opti.ng
         value = function(*arguments)
         if np.all(np.asarray(lower) == np.asarray(upper)):
             self.opti.subject_to(value == lower)
         else:
             self.opti.subject_to(self.opti.bounded(lower, value, upper))
-        _, calls, rows = self._groups.setdefault(id(function), (function, [], []))
+        _, calls, values = self._groups.setdefault(id(function), (function, [], []))
         calls.append(arguments)
-        rows.append(np.arange(first, self.opti.ng))
+        values.append(value)
+
+    def _rows(self) -> dict[int, np.ndarray] | None:
+        """The rows of g of each recorded value (by the hash of its node), or None if Opti
+        laid g out otherwise. (Opti's g stacks the constraints' expressions in order, each
+        its value itself for `value == c` and bounds; asking Opti for its row count after
+        each constraint instead rebuilds g each time, quadratic in the rows.)"""
+        g = self.opti.g
+        parts = ([g.dep(i) for i in range(g.n_dep())] if g.is_op(ca.OP_VERTCAT) else [g])
+        offsets = np.cumsum([0] + [part.numel() for part in parts])
+        if offsets[-1] != self.opti.ng:
+            return None
+        rows = {hash(part): np.arange(offsets[i], offsets[i + 1])
+                for i, part in enumerate(parts)}
+        recorded = [hash(v) for _, _, values in self._groups.values() for v in values]
+        return rows if all(h in rows for h in recorded) else None
 
     def derivative_options(self, threads: int = 1) -> dict[str, ca.Function]:
         """nlpsol options `jac_g` and `hess_lag` for the Opti problem as it stands (call
-        after its last row and objective); empty if nothing was recorded."""
+        after its last row and objective); empty (CasADi's own derivatives) if nothing was
+        recorded or Opti's rows cannot be matched to the recorded ones."""
         if not self._groups:
             return {}
         opti = self.opti
+        rows_of = self._rows()
+        if rows_of is None:  # CasADi's own derivatives
+            return {}
         x, p = ca.SX.sym("x", opti.nx), ca.SX.sym("p", opti.np)
         f, g = ca.Function("nlp", [opti.x, opti.p], [opti.f, opti.g]).expand()(x, p)
         groups = list(self._groups.values())
@@ -172,8 +190,9 @@ class RepeatedRows:
         values = ca.Function("arguments", [opti.x, opti.p], columns).expand()(x, p)
         values = [values] if isinstance(values, ca.SX) else list(values)
         blocks = []
-        for function, _, rows in groups:
+        for function, _, outputs in groups:
             arguments, values = values[:function.n_in()], values[function.n_in():]
+            rows = np.array([rows_of[hash(output)] for output in outputs])
             blocks.append(RepeatedBlock(function=function, arguments=tuple(arguments),
-                                        rows=np.array(rows)))
+                                        rows=rows))
         return repeated_block_derivatives(x, p, f, g, tuple(blocks), threads=threads)

@@ -551,6 +551,11 @@ class StancePlan:
         swing_rows_dropped: the swing-height rows made the NLP infeasible and this plan
             was solved without them (`StanceOptions.swing_fallback`); iterations and
             solve_time count both solves.
+        build_time: seconds to build the NLP and its derivatives; evaluation_time: seconds
+            in CasADi's evaluations during IPOPT; ipopt_time: seconds in IPOPT in all (the
+            rest is IPOPT's own, mostly MUMPS); None where not measured (of the last NLP
+            when the swing rows were dropped).
+        n_variables, n_constraints: the NLP's size.
     """
 
     stances: tuple[Stance, ...]
@@ -564,6 +569,11 @@ class StancePlan:
     solve_time: float
     verification: Verification
     swing_rows_dropped: bool = False
+    build_time: float | None = None
+    evaluation_time: float | None = None
+    ipopt_time: float | None = None
+    n_variables: int = 0
+    n_constraints: int = 0
 
     @property
     def solved(self) -> bool:
@@ -588,6 +598,10 @@ class StancePlan:
             f"stances: closed contacts {stances}",
             *(["stances: the swing-height rows made the NLP infeasible; solved without "
                "them"] if self.swing_rows_dropped else []),
+            *([] if self.build_time is None else [
+                f"stances: {self.n_variables} variables, {self.n_constraints} constraints; "
+                f"build {self.build_time:.1f} s, IPOPT {self.ipopt_time:.1f} s (evaluations "
+                f"{self.evaluation_time:.1f} s)"]),
             f"stances: {self.verification.summary()}",
         ])
 
@@ -912,16 +926,24 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     opti.minimize(cost + terminal_cost(y_end))
     # the lifted NLP expands into one SX graph cheaply (bolt's walk: 0.5 GB); the explicit
     # form's did not (more than 15 GB with RK4: `StanceDynamics.rk4`)
-    plugin = {"print_time": False, "expand": options.inverse_dynamics,
+    plugin = {"print_time": False, "record_time": True, "expand": options.inverse_dynamics,
               **({} if repeated is None else repeated.derivative_options(options.threads))}
     ipopt = {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0, "sb": "yes"}
     if verbose:
         report_progress(opti)
     iterations = 0
+    build_time = time.perf_counter() - start
+    evaluation_time = ipopt_time = 0.0
     for restart in range(options.capped_restarts + 1):
         opti.solver("ipopt", plugin, ipopt)
+        begin = time.perf_counter()
         sol = solve_guarded(opti, options.blas_threads)
         stats = sol.stats()
+        in_ipopt = float(stats.get("t_wall_total", 0.0))
+        build_time += time.perf_counter() - begin - in_ipopt  # each solve builds its solver
+        ipopt_time += in_ipopt
+        evaluation_time += sum(float(v) for key, v in stats.items()
+                               if key.startswith("t_wall_nlp_"))
         status = str(stats.get("return_status", "unknown"))
         iterations += int(stats.get("iter_count", 0))
         if status != CAPPED or restart == options.capped_restarts:
@@ -967,7 +989,9 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     plan = StancePlan(stances=solved_stances, t=times, x=node_x, u=u_value,
                       boundary_states=boundary_x, cost=float(sol.value(opti.f)),
                       ipopt_status=status, iterations=iterations, solve_time=solve_time,
-                      verification=verification)
+                      verification=verification, build_time=build_time,
+                      evaluation_time=evaluation_time, ipopt_time=ipopt_time,
+                      n_variables=int(opti.nx), n_constraints=int(opti.ng))
     if verbose:
         print(plan.summary(), flush=True)
     return plan
