@@ -1,6 +1,6 @@
 """TF-9's monoped as stages (tfcontact.scenes.monoped_exact): the reduced hop's start, the
 tiled guess and the schedule search, the Radau levels, the files `tfcontact plan monoped`
-writes, and the reduced task end to end (slow: about 7 minutes). The Radau levels on the
+writes, and the reduced task end to end (slow: about 4 minutes). The Radau levels on the
 saved RK4 plan (slow: about 12 minutes) are in tests/test_monoped_radau_levels.py, a file
 of their own so that the test runner's two workers share the two longest tests. The chain's
 own rules (iteration caps, failures, refined meshes) are tested in tests/test_ocp_chain.py."""
