@@ -5,8 +5,8 @@ of differentiating the exact re-solves, side by side in one run (benchmarks/mono
     python scripts/bench_monoped.py --task full --routes element
 
 Each route runs `tfcontact plan monoped --task TASK` in a child process of its own, one
-after the other: "element" (the shipped `monoped_exact.RESOLVE_DERIVATIVES`: each shooting
-step, collocation element, contact and path row differentiated once, evaluated on two
+after the other: "element" (the shipped `monoped_exact.RESOLVE_DERIVATIVES`: the RK4
+re-solves' shooting steps, contact and path rows differentiated once, evaluated on two
 threads) and "plain" (CasADi differentiates each whole NLP, the route before
 2026-11-28). Per step of the plan (the discovery, each re-solve level, each schedule
 candidate): IPOPT iterations, seconds, of which the build (the NLP and its derivatives)
