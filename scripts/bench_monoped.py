@@ -69,13 +69,14 @@ def rows(route: str, summary: dict, solver: dict, wall: float, peak: float
             "objective": solver.get("objective", "-"), "wall [s]": wall,
             "peak memory [GB]": peak}
 
-    def value(step: dict, key: str) -> str | float:
-        return "-" if step.get(key) is None else float(step[key])
+    def value(entries: dict | None, key: str) -> str | float | int:
+        return "-" if not entries or entries.get(key) is None else entries[key]
 
     steps = [{"route": route, "step": step["name"], "iterations": step["iterations"],
-              "seconds": float(step["seconds"]), "build [s]": value(step, "build"),
-              "IPOPT [s]": value(step, "ipopt"), "evaluations [s]": value(step, "evaluations"),
-              "variables": step.get("n_variables") or "-",
+              "seconds": float(step["seconds"]), "build [s]": value(step["timing"], "build"),
+              "IPOPT [s]": value(step["timing"], "ipopt"),
+              "evaluations [s]": value(step["timing"], "evaluations"),
+              "variables": value(step["timing"], "n_variables"),
               "peak [GB]": value(step, "peak_memory"),
               "objective": f"{step['objective']:.6g}", "status": step["status"]}
              for step in solver.get("steps", [])]

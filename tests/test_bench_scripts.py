@@ -132,14 +132,17 @@ def test_monoped_bench_tabulates_each_step_and_sets_its_route(load_script, monke
     bench = load_script("bench_monoped")
     solver = {"objective": 176.43, "steps": [
         {"name": "time-freezing homotopy", "ipopt_status": "Solve_Succeeded",
-         "iterations": 778, "seconds": 8.1, "objective": 50.9, "status": "failed"},
+         "iterations": 778, "seconds": 8.1, "objective": 50.9, "status": "failed",
+         "timing": None, "peak_memory": None},
         {"name": "exact re-solve, 8 nodes", "ipopt_status": "Solve_Succeeded",
          "iterations": 458, "seconds": 41.7, "objective": 150.268, "status": "converged",
-         "build": 2.5, "evaluations": 20.25, "ipopt": 38.0, "n_variables": 1675,
+         "timing": {"build": 2.5, "evaluations": 20.25, "ipopt": 38.0, "n_variables": 1675,
+                    "n_constraints": 1600},
          "peak_memory": 0.61}]}
     plan, steps = bench.rows("element", {"status": "converged"}, solver, 215.0, 0.7)
     assert plan["objective"] == 176.43 and plan["peak memory [GB]"] == 0.7
     assert steps[0]["build [s]"] == "-" and steps[0]["variables"] == "-"
+    assert steps[0]["peak [GB]"] == "-"
     assert steps[1]["evaluations [s]"] == 20.25 and steps[1]["variables"] == 1675
     table = bench.markdown_table(bench.STEP_COLUMNS, steps).splitlines()
     assert "| 20.25 | 1675 | 0.61 | 150.268 | converged |" in table[3]

@@ -321,10 +321,12 @@ def test_a_capped_re_solve_reports_progress_and_fails_honestly(monkeypatch, caps
     assert plan.ipopt_status == "Maximum_Iterations_Exceeded" and plan.iterations == 12
     assert plan.status == "nlp_failed" and not plan.success
     # where its time went: the build, IPOPT, and CasADi's evaluations inside IPOPT
-    assert 0 < plan.evaluation_time < plan.ipopt_time
-    assert 0 < plan.build_time and plan.build_time + plan.ipopt_time <= plan.solve_time
-    assert plan.n_variables > 10 * 8 * 2 and plan.n_constraints > 10 * 2 * 8
-    assert f"{plan.n_variables} variables, {plan.n_constraints} constraints" in plan.summary()
+    timing = plan.timing
+    assert 0 < timing.evaluations < timing.ipopt
+    assert 0 < timing.build and timing.build + timing.ipopt <= plan.solve_time
+    assert timing.n_variables > 10 * 8 * 2 and timing.n_constraints > 10 * 2 * 8
+    assert f"{timing.n_variables} variables, {timing.n_constraints} constraints" \
+        in plan.summary()
 
 
 def test_blas_threads_is_validated():

@@ -105,11 +105,11 @@ def test_a_capped_nlp_solved_again_from_its_iterate_converges():
                                verbose=False)
     assert runs[0].ipopt_status == "Maximum_Iterations_Exceeded"
     # where the time went: the build, IPOPT, and CasADi's evaluations inside IPOPT
-    assert 0 < uncapped.evaluation_time < uncapped.ipopt_time
-    assert 0 < uncapped.build_time and uncapped.build_time + uncapped.ipopt_time \
-        <= uncapped.solve_time
-    assert uncapped.n_variables > 8 * 5 and uncapped.n_constraints > 8 * 5
-    assert f"{uncapped.n_variables} variables" in uncapped.summary()
+    timing = uncapped.timing
+    assert 0 < timing.evaluations < timing.ipopt
+    assert 0 < timing.build and timing.build + timing.ipopt <= uncapped.solve_time
+    assert timing.n_variables > 8 * 5 and timing.n_constraints > 8 * 5
+    assert f"{timing.n_variables} variables" in uncapped.summary()
     assert abs(runs[0].stances[2].start - t2) > 1e-4
     assert runs[5].solved and runs[5].iterations <= uncapped.iterations + 2
     assert runs[5].stances[1].start == pytest.approx(t1, abs=1e-7)

@@ -11,6 +11,7 @@ from tfcontact.mpcc.solver import (
     MpccResult,
     MpccSolver,
     MpccStatus,
+    evaluation_seconds,
     solve,
 )
 
@@ -29,6 +30,7 @@ __all__ = [
     "Relaxation",
     "RepeatedBlock",
     "Scholtes",
+    "evaluation_seconds",
     "repeated_block_derivatives",
     "solve",
 ]

@@ -444,7 +444,7 @@ class MpccSolver:
             if np.all(np.isfinite(lam_new.x)) and np.all(np.isfinite(lam_new.g)):
                 lam = lam_new
         residual, violation, objective = self.diagnostics(x[: self._n_w], p)
-        evaluations = sum(float(v) for key, v in stats.items() if key.startswith("t_wall_nlp_"))
+        evaluations = evaluation_seconds(stats)
         step = HomotopyStep(sigma, int(stats.get("iter_count", 0)), objective, residual,
                             seconds, str(stats.get("return_status", "unknown")), evaluations,
                             intermediate, warm_started=warm)
@@ -564,3 +564,9 @@ def solve(mpcc: Mpcc, p: np.ndarray | None = None, *, relaxation: Relaxation | N
     if throw and not result.success:
         raise SolveFailed(result.message, result)
     return result
+
+
+def evaluation_seconds(stats: dict[str, Any]) -> float:
+    """Seconds CasADi spent evaluating an NLP's functions during an IPOPT solve (the
+    `t_wall_nlp_*` entries of a solver's `stats()`)."""
+    return sum(float(v) for key, v in stats.items() if key.startswith("t_wall_nlp_"))

@@ -24,7 +24,7 @@ import numpy as np
 from tfcontact.errors import InvalidInput
 from tfcontact.native import peak_memory, reset_peak_memory, return_memory
 from tfcontact.ocp.contact import ContactProblem, ContactResult
-from tfcontact.ocp.nodes import CAPPED
+from tfcontact.ocp.nodes import CAPPED, NlpTiming
 from tfcontact.ocp.polish import (
     Phase,
     PolishedPlan,
@@ -60,10 +60,8 @@ class ResolveLevel:
 @dataclass(frozen=True)
 class ChainStep:
     """One solve of a chain: its name, IPOPT status, iterations, seconds, objective and
-    the plan's status; where known, where its time went (`build`: the NLP and its
-    derivatives; `evaluations`: CasADi's function evaluations inside IPOPT; `ipopt`: IPOPT
-    in all; seconds), the NLP's size and the process's peak memory during it [GB] (None:
-    not measured)."""
+    the plan's status; where known, where its time went and the NLP's size (`timing`) and
+    the process's peak memory during it [GB]."""
 
     name: str
     ipopt_status: str
@@ -71,27 +69,19 @@ class ChainStep:
     seconds: float
     objective: float
     status: str
-    build: float | None = None
-    evaluations: float | None = None
-    ipopt: float | None = None
-    n_variables: int = 0
+    timing: NlpTiming | None = None
     peak_memory: float | None = None
 
     @classmethod
     def of(cls, name: str, plan: PolishedPlan, seconds: float,
            peak_memory: float | None = None) -> ChainStep:
         return cls(name, plan.ipopt_status, plan.iterations, seconds, plan.cost, plan.status,
-                   build=plan.build_time, evaluations=plan.evaluation_time,
-                   ipopt=plan.ipopt_time, n_variables=plan.n_variables,
-                   peak_memory=peak_memory)
+                   plan.timing, peak_memory)
 
-    def timing(self) -> str:
-        """Where the step's time went, or "" if not known."""
-        if self.build is None:
-            return ""
+    def where_the_time_went(self) -> str:
+        """"; " and the step's timing and peak memory, or "" if not known."""
         memory = "" if self.peak_memory is None else f", peak {self.peak_memory:.2f} GB"
-        return (f"; build {self.build:.0f} s, IPOPT {self.ipopt:.0f} s (evaluations "
-                f"{self.evaluations:.0f} s), {self.n_variables} variables{memory}")
+        return "" if self.timing is None else f"; {self.timing.summary()}{memory}"
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,7 +124,7 @@ class ResolveChain:
         for step in self.steps:
             lines.append(f"  {step.name}: {step.status} (IPOPT {step.ipopt_status}, "
                          f"{step.iterations} iterations, {step.seconds:.0f} s, objective "
-                         f"{step.objective:.6g}{step.timing()})")
+                         f"{step.objective:.6g}{step.where_the_time_went()})")
         if self.plan is not None:
             lines.append(self.plan.summary())
             lines.append(f"path constraints: largest violation at the nodes "

@@ -1,8 +1,9 @@
 """What the exact re-solves (`polish`: one contact; `stances`: several) share: a contact
 problem's rows and costs as functions of a node's state x = (q, v), its time and control,
-a guess read off a sampled trajectory, the collocation equations of an element, the
-Delassus solves, an Opti solve that reports its progress and stops on Ctrl-C, and the
-rows an Opti problem repeats (`RepeatedRows`), differentiated once per function."""
+a guess read off a sampled trajectory, the collocation equations of an element and a
+shooting step as functions, the Delassus solves, an Opti solve that reports its progress,
+stops on Ctrl-C and says where its time went (`NlpTiming`), and the rows an Opti problem
+repeats (`RepeatedRows`), differentiated once per function."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import casadi as ca
 import numpy as np
 
 from tfcontact import interrupt
-from tfcontact.mpcc import RepeatedBlock, repeated_block_derivatives
+from tfcontact.mpcc import RepeatedBlock, evaluation_seconds, repeated_block_derivatives
 from tfcontact.native import blas_threads
 
 PROGRESS_EVERY = 250
@@ -61,6 +62,17 @@ class NodeFunctions:
             lower=np.concatenate([problem.q_lower, problem.v_lower]),
             upper=np.concatenate([problem.q_upper, problem.v_upper]))
 
+    def path_rows(self) -> tuple[ca.Function, np.ndarray, np.ndarray] | None:
+        """The path rows as a function of a node's (x, u) with their bounds (`bounded_rows`),
+        or None without path rows or when they depend on the time."""
+        path, system = self.path, self.problem.system
+        if path is None or ca.depends_on(path.expression, system.y[system.clock_index]):
+            return None
+        x = ca.SX.sym("x", 2 * system.cls.n_q)
+        u = ca.SX.sym("u", system.cls.n_u)
+        return bounded_rows("path_rows", [x, u],
+                            [(path.lower, self.path_fn(self.y_of(x, 0.0), u), path.upper)])
+
     def y_of(self, x, t):
         """The time-freezing state of the problem's rows and costs from a node's x = (q, v)
         and time t (the other entries zero)."""
@@ -72,6 +84,21 @@ class NodeFunctions:
             entries[system.v_index.start + i] = x[n_q + i]
         entries[system.clock_index] = t
         return ca.vertcat(*entries)
+
+
+def bounded_rows(name: str, inputs: list[ca.SX], rows: list[tuple]
+                 ) -> tuple[ca.Function, np.ndarray, np.ndarray]:
+    """(function of `inputs` stacking the rows' values, lower bounds, upper bounds) of rows
+    given as (lower, value, upper) triples, the bounds broadcast to each value's size."""
+    values = [ca.reshape(value, -1, 1) for _, value, _ in rows]
+    sizes = [v.shape[0] for v in values]
+    lower = [np.broadcast_to(np.asarray(lo, dtype=float), n) for (lo, _, _), n
+             in zip(rows, sizes, strict=True)]
+    upper = [np.broadcast_to(np.asarray(up, dtype=float), n) for (_, _, up), n
+             in zip(rows, sizes, strict=True)]
+    return (ca.Function(name, inputs, [ca.vertcat(*values)]),
+            np.concatenate(lower) if lower else np.zeros(0),
+            np.concatenate(upper) if upper else np.zeros(0))
 
 
 def interpolate(t: np.ndarray, x: np.ndarray, at: float) -> np.ndarray:
@@ -104,6 +131,53 @@ def solve_guarded(opti: ca.Opti, threads: int | None):
             return opti.solve()
     except RuntimeError:
         return opti.debug
+
+
+@dataclass(frozen=True)
+class NlpTiming:
+    """Where a re-solve's time went [s]: `build` (the NLP and its derivatives, before
+    IPOPT's first iteration), `ipopt` (IPOPT in all) and, inside it, `evaluations`
+    (CasADi's evaluations of the NLP's functions; the rest is IPOPT's own, mostly MUMPS);
+    and the NLP's size."""
+
+    build: float
+    ipopt: float
+    evaluations: float
+    n_variables: int
+    n_constraints: int
+
+    def summary(self) -> str:
+        return (f"{self.n_variables} variables, {self.n_constraints} constraints; build "
+                f"{self.build:.1f} s, IPOPT {self.ipopt:.1f} s (evaluations "
+                f"{self.evaluations:.1f} s)")
+
+
+def solve_timed(opti: ca.Opti, threads: int | None) -> tuple[object, float, float, float]:
+    """`solve_guarded` and its seconds: (solution, building the solver (Opti builds it
+    in its first solve after `opti.solver`), in IPOPT, in CasADi's evaluations). The
+    solver must record its time (`record_time`)."""
+    begin = time.perf_counter()
+    sol = solve_guarded(opti, threads)
+    stats = sol.stats()
+    in_ipopt = float(stats.get("t_wall_total", 0.0))
+    return sol, time.perf_counter() - begin - in_ipopt, in_ipopt, evaluation_seconds(stats)
+
+
+def shooting_function(rk4: ca.Function, name: str) -> ca.Function:
+    """(x, u, h, x_next) -> x_next - rk4(x, u, h): one shooting node's equations, from the
+    steps `rk4` (x, u, h) -> x+."""
+    x, u = ca.SX.sym("x", rk4.size1_in(0)), ca.SX.sym("u", rk4.size1_in(1))
+    h, x_next = ca.SX.sym("h"), ca.SX.sym("x_next", rk4.size1_in(0))
+    return ca.Function(name, [x, u, h, x_next], [x_next - rk4(x, u, h)])
+
+
+def collocation_function(rhs: ca.Function, tableau, name: str) -> ca.Function:
+    """(x, z_1, ..., z_s, u, h) -> one collocation element's equations
+    (`collocation_residuals` of `rhs` (x, u) -> dx/dt, stacked)."""
+    x, u, h = ca.SX.sym("x", rhs.size1_in(0)), ca.SX.sym("u", rhs.size1_in(1)), ca.SX.sym("h")
+    stages = [ca.SX.sym(f"z{j}", rhs.size1_in(0)) for j in range(tableau.stages)]
+    residuals = collocation_residuals(rhs, tableau, x, stages, u, h)
+    return ca.Function(name, [x, *stages, u, h], [ca.vertcat(*residuals)])
 
 
 def collocation_residuals(rhs, tableau, x, stages, u, h) -> list:

@@ -49,12 +49,16 @@ from tfcontact.errors import InvalidInput, TfcontactError, positive_int
 from tfcontact.fesd.tableau import RadauIIA
 from tfcontact.ocp.contact import ContactProblem, ContactResult
 from tfcontact.ocp.nodes import (
+    NlpTiming,
     NodeFunctions,
     RepeatedRows,
+    bounded_rows,
+    collocation_function,
     collocation_residuals,
     interpolate,
     report_progress,
-    solve_guarded,
+    shooting_function,
+    solve_timed,
     spd_solve,
 )
 from tfcontact.verify import (
@@ -243,11 +247,7 @@ class PolishedPlan:
         ipopt_status: IPOPT's return status of the last NLP; iterations: over all NLPs.
         solve_time: seconds (build and solves); verification: the independent checks.
         integrator, substeps: the options' integrator and nodes or elements per interval.
-        build_time: seconds to build the NLP and its derivatives (before IPOPT's first
-            iteration); evaluation_time: seconds in CasADi's evaluations of the NLP's
-            functions during IPOPT; ipopt_time: seconds in IPOPT in all (evaluations
-            included; the rest is IPOPT's own, mostly MUMPS); None where not measured.
-        n_variables, n_constraints: the NLP's size.
+        timing: where the solve's time went and the NLP's size (None: not measured).
     """
 
     phases: tuple[Phase, ...]
@@ -265,11 +265,7 @@ class PolishedPlan:
     history: tuple[tuple[float, str, int], ...] = field(default=())
     integrator: str = "rk4"
     substeps: tuple[int, ...] = ()
-    build_time: float | None = None
-    evaluation_time: float | None = None
-    ipopt_time: float | None = None
-    n_variables: int = 0
-    n_constraints: int = 0
+    timing: NlpTiming | None = None
 
     @property
     def solved(self) -> bool:
@@ -294,10 +290,7 @@ class PolishedPlan:
             f"polish: {self.integrator}, {_mesh(self.substeps, self.integrator)} per control "
             "interval",
             f"polish: objective {self.cost:.6g}; phases {switches}",
-            *([] if self.build_time is None else [
-                f"polish: {self.n_variables} variables, {self.n_constraints} constraints; "
-                f"build {self.build_time:.1f} s, IPOPT {self.ipopt_time:.1f} s (evaluations "
-                f"{self.evaluation_time:.1f} s)"]),
+            *([] if self.timing is None else [f"polish: {self.timing.summary()}"]),
             f"polish: {self.verification.summary()}",
         ])
 
@@ -420,31 +413,19 @@ class HybridDynamics:
         return self._rk4[key]
 
     def shooting(self, mode: str, steps: int) -> ca.Function:
-        """(x, u, h, x_next) -> x_next - (`steps` RK4 steps of length h / steps from x):
-        one shooting node's equations."""
+        """`shooting_function` of `rk4(mode, steps)`, built once."""
         key = ("shooting", mode, steps)
         if key not in self._rk4:
-            rk4 = self.rk4(mode, steps)
-            x = ca.SX.sym("x", rk4.size1_in(0))
-            u = ca.SX.sym("u", rk4.size1_in(1))
-            h = ca.SX.sym("h")
-            x_next = ca.SX.sym("x_next", x.numel())
-            self._rk4[key] = ca.Function(f"shooting_{len(self._rk4)}", [x, u, h, x_next],
-                                         [x_next - rk4(x, u, h)])
+            self._rk4[key] = shooting_function(self.rk4(mode, steps),
+                                               f"shooting_{len(self._rk4)}")
         return self._rk4[key]
 
     def collocation(self, mode: str, tableau) -> ca.Function:
-        """(x, z_1, ..., z_s, u, h) -> the collocation equations of one element of length
-        h from x (`collocation_residuals`, stacked)."""
+        """`collocation_function` of `rhs[mode]`, built once."""
         key = ("collocation", mode, tableau.stages)
         if key not in self._rk4:
-            n_x, n_u = self.rhs[mode].size1_in(0), self.rhs[mode].size1_in(1)
-            x = ca.SX.sym("x", n_x)
-            stages = [ca.SX.sym(f"z{j}", n_x) for j in range(tableau.stages)]
-            u, h = ca.SX.sym("u", n_u), ca.SX.sym("h")
-            residuals = collocation_residuals(self.rhs[mode], tableau, x, stages, u, h)
-            self._rk4[key] = ca.Function(f"collocation_{len(self._rk4)}", [x, *stages, u, h],
-                                         [ca.vertcat(*residuals)])
+            self._rk4[key] = collocation_function(self.rhs[mode], tableau,
+                                                  f"collocation_{len(self._rk4)}")
         return self._rk4[key]
 
     def step(self, mode: str, x, u, h):
@@ -599,25 +580,16 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
 
     # With element derivatives, a node's path rows (if free of the time) and its contact
     # rows are repeated rows too: one function each, differentiated once.
-    timed_path = path_fn is not None and ca.depends_on(path.expression,
-                                                       system.y[system.clock_index])
-    node_functions = {}
+    path_rows = None if repeated is None else functions.path_rows()
+    contact_functions = {}
 
-    def node_function(kind):
-        if kind not in node_functions:
+    def contact_function(mode):
+        if mode not in contact_functions:
             xs, us, ms = ca.SX.sym("x", 2 * n_q), ca.SX.sym("u", n_u), ca.SX.sym("margin")
-            if kind == "path":
-                n_path = path.expression.shape[0]
-                rows = [(np.broadcast_to(path.lower, n_path), path_fn(y_of(xs, 0.0), us),
-                         np.broadcast_to(path.upper, n_path))]
-            else:
-                rows = contact_row_values(xs, us, kind, ms)
-            node_functions[kind] = (
-                ca.Function(f"node_{kind.replace('+', 'p').replace('-', 'm')}", [xs, us, ms],
-                            [ca.vertcat(*(r[1] for r in rows))]),
-                np.concatenate([np.broadcast_to(r[0], r[1].shape[0]) for r in rows]),
-                np.concatenate([np.broadcast_to(r[2], r[1].shape[0]) for r in rows]))
-        return node_functions[kind]
+            contact_functions[mode] = bounded_rows(
+                f"contact_{mode.replace('+', 'p').replace('-', 'm')}", [xs, us, ms],
+                contact_row_values(xs, us, mode, ms))
+        return contact_functions[mode]
 
     def contact_row_values(x, u, mode, margin):
         """(lower, value, upper) of the contact's rows in `mode`."""
@@ -641,9 +613,9 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
         if finite.any():
             opti.subject_to(opti.bounded(lower[finite], x[[int(i) for i in np.flatnonzero(finite)]],
                                          upper[finite]))
-        if path_fn is not None and repeated is not None and not timed_path:
-            function, lower, upper = node_function("path")
-            repeated.bounded(lower, function, upper, x, u, margin)
+        if path_rows is not None:
+            function, lower, upper = path_rows
+            repeated.bounded(lower, function, upper, x, u)
         elif path_fn is not None:
             opti.subject_to(opti.bounded(np.broadcast_to(path.lower, path.expression.shape[0]),
                                          path_fn(y_of(x, t), u),
@@ -659,7 +631,7 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
         if mode == STICK:
             stick_forces.append((x, u))
         if repeated is not None:
-            function, lower, upper = node_function(mode)
+            function, lower, upper = contact_function(mode)
             repeated.bounded(lower, function, upper, x, u, margin)
             return
         for lower, value, _ in contact_row_values(x, u, mode, margin):
@@ -700,14 +672,14 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
                         opti.set_initial(z, interpolate(
                             guess_t, guess_x, ga + (i + tableau.c[j]) * (gb - ga) / n_steps))
                         stages.append(z)
-                    element = None if repeated is None else dyn.collocation(mode, tableau)
-                    if element is not None:
-                        repeated.zero(element, x, *stages, u_k, h)
-                    residuals = (stages if element is not None else
-                                 collocation_residuals(dyn.rhs[mode], tableau, x, stages,
-                                                       u_k, h))
+                    if repeated is not None:
+                        repeated.zero(dyn.collocation(mode, tableau), x, *stages, u_k, h)
+                        residuals = [None] * len(stages)
+                    else:
+                        residuals = collocation_residuals(dyn.rhs[mode], tableau, x, stages,
+                                                          u_k, h)
                     for j, (z, residual) in enumerate(zip(stages, residuals, strict=True)):
-                        if element is None:
+                        if residual is not None:
                             opti.subject_to(residual == 0)
                         cost = cost + h * tableau.b[j] * running(
                             y_of(z, t0 + tableau.c[j] * h), u_k)
@@ -783,15 +755,11 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     evaluation_time = ipopt_time = 0.0
     for c in options.cone_margins:
         opti.set_value(margin, c)
-        begin = time.perf_counter()
-        sol = solve_guarded(opti, options.blas_threads)
-        stats = sol.stats()
-        in_ipopt = float(stats.get("t_wall_total", 0.0))
-        # the first solve builds the solver (CasADi's derivatives) before IPOPT starts
-        build_time += time.perf_counter() - begin - in_ipopt if not history else 0.0
+        sol, building, in_ipopt, evaluations = solve_timed(opti, options.blas_threads)
+        build_time += building if not history else 0.0  # the first solve builds the solver
         ipopt_time += in_ipopt
-        evaluation_time += sum(float(v) for key, v in stats.items()
-                               if key.startswith("t_wall_nlp_"))
+        evaluation_time += evaluations
+        stats = sol.stats()
         status = str(stats.get("return_status", "unknown"))
         n_it = int(stats.get("iter_count", 0))
         iterations += n_it
@@ -837,8 +805,8 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
         contact_forces=forces, impact_impulses=impact_values, cost=float(sol.value(opti.f)),
         ipopt_status=status, iterations=iterations, solve_time=solve_time,
         verification=verification, history=tuple(history), integrator=options.integrator,
-        substeps=substeps, build_time=build_time, evaluation_time=evaluation_time,
-        ipopt_time=ipopt_time, n_variables=int(opti.nx), n_constraints=int(opti.ng))
+        substeps=substeps, timing=NlpTiming(build_time, ipopt_time, evaluation_time,
+                                            int(opti.nx), int(opti.ng)))
     if verbose:
         print(plan.summary(), flush=True)
     return plan

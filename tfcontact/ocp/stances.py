@@ -55,13 +55,17 @@ from tfcontact.fesd.tableau import RadauIIA
 from tfcontact.ocp.contact import ContactProblem, ContactResult
 from tfcontact.ocp.nodes import (
     CAPPED,
+    NlpTiming,
     NodeFunctions,
     RepeatedRows,
+    bounded_rows,
+    collocation_function,
     collocation_residuals,
     collocation_rows,
     interpolate,
     report_progress,
-    solve_guarded,
+    shooting_function,
+    solve_timed,
     spd_solve,
 )
 from tfcontact.verify import (
@@ -490,29 +494,20 @@ class StanceDynamics:
             self._cache[key] = ca.Function(f"rk4_{len(self._cache)}", [x, u, h], [end])
         return self._cache[key]
 
-
     def shooting(self, closed: tuple[int, ...], steps: int) -> ca.Function:
-        """(x, u, h, x_next) -> x_next - `rk4(closed, steps)`(x, u, h): one shooting
-        node's equations."""
+        """`shooting_function` of `rk4(closed, steps)`, built once."""
         key = (closed, "shooting", steps)
         if key not in self._cache:
-            x, u = ca.SX.sym("x", self._x.shape[0]), ca.SX.sym("u", self._u.shape[0])
-            h, x_next = ca.SX.sym("h"), ca.SX.sym("x_next", self._x.shape[0])
-            self._cache[key] = ca.Function(f"shooting_{len(self._cache)}", [x, u, h, x_next],
-                                           [x_next - self.rk4(closed, steps)(x, u, h)])
+            self._cache[key] = shooting_function(self.rk4(closed, steps),
+                                                 f"shooting_{len(self._cache)}")
         return self._cache[key]
 
     def collocation(self, closed: tuple[int, ...], tableau) -> ca.Function:
-        """(x, z_1, ..., z_s, u, h) -> one collocation element's equations under stance
-        `closed` (`collocation_residuals`, stacked)."""
+        """`collocation_function` of `rhs(closed)`, built once."""
         key = (closed, "collocation", tableau.stages)
         if key not in self._cache:
-            x, u, h = ca.SX.sym("x", self._x.shape[0]), ca.SX.sym("u", self._u.shape[0]), \
-                ca.SX.sym("h")
-            stages = [ca.SX.sym(f"z{j}", self._x.shape[0]) for j in range(tableau.stages)]
-            residuals = collocation_residuals(self.rhs(closed), tableau, x, stages, u, h)
-            self._cache[key] = ca.Function(f"collocation_{len(self._cache)}",
-                                           [x, *stages, u, h], [ca.vertcat(*residuals)])
+            self._cache[key] = collocation_function(self.rhs(closed), tableau,
+                                                    f"collocation_{len(self._cache)}")
         return self._cache[key]
 
 
@@ -551,11 +546,8 @@ class StancePlan:
         swing_rows_dropped: the swing-height rows made the NLP infeasible and this plan
             was solved without them (`StanceOptions.swing_fallback`); iterations and
             solve_time count both solves.
-        build_time: seconds to build the NLP and its derivatives; evaluation_time: seconds
-            in CasADi's evaluations during IPOPT; ipopt_time: seconds in IPOPT in all (the
-            rest is IPOPT's own, mostly MUMPS); None where not measured (of the last NLP
-            when the swing rows were dropped).
-        n_variables, n_constraints: the NLP's size.
+        timing: where the solve's time went and the NLP's size (None: not measured; of
+            the last NLP when the swing rows were dropped).
     """
 
     stances: tuple[Stance, ...]
@@ -569,11 +561,7 @@ class StancePlan:
     solve_time: float
     verification: Verification
     swing_rows_dropped: bool = False
-    build_time: float | None = None
-    evaluation_time: float | None = None
-    ipopt_time: float | None = None
-    n_variables: int = 0
-    n_constraints: int = 0
+    timing: NlpTiming | None = None
 
     @property
     def solved(self) -> bool:
@@ -598,10 +586,7 @@ class StancePlan:
             f"stances: closed contacts {stances}",
             *(["stances: the swing-height rows made the NLP infeasible; solved without "
                "them"] if self.swing_rows_dropped else []),
-            *([] if self.build_time is None else [
-                f"stances: {self.n_variables} variables, {self.n_constraints} constraints; "
-                f"build {self.build_time:.1f} s, IPOPT {self.ipopt_time:.1f} s (evaluations "
-                f"{self.evaluation_time:.1f} s)"]),
+            *([] if self.timing is None else [f"stances: {self.timing.summary()}"]),
             f"stances: {self.verification.summary()}",
         ])
 
@@ -716,52 +701,30 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
         return a, lam
 
     # With element derivatives, a node's path rows (if free of the time) and its contacts'
-    # rows are repeated rows: one function per stance (and switching contacts) each.
-    timed_path = path_fn is not None and ca.depends_on(path.expression,
-                                                       system.y[system.clock_index])
-    node_functions: dict = {}
-
-    def node_function(key, rows_of):
-        """(function of (x, u), lower, upper) of the rows `rows_of(x, u)` gives as (lower,
-        value, upper) triples, built once per `key`."""
-        if key not in node_functions:
-            xs, us = ca.SX.sym("x", 2 * n_q), ca.SX.sym("u", n_u)
-            rows = rows_of(xs, us)
-            values = [ca.reshape(value, -1, 1) for _, value, _ in rows]
-            node_functions[key] = (
-                ca.Function(f"node_rows_{len(node_functions)}", [xs, us], [ca.vertcat(*values)]),
-                np.concatenate([np.broadcast_to(lo, v.shape[0]) for (lo, _, _), v
-                                in zip(rows, values, strict=True)]),
-                np.concatenate([np.broadcast_to(up, v.shape[0]) for (_, _, up), v
-                                in zip(rows, values, strict=True)]))
-        return node_functions[key]
+    # rows are repeated rows: one function each (per stance and switching contacts).
+    path_rows = None if repeated is None else functions.path_rows()
+    contact_functions: dict = {}
 
     def constrain_node(x, t, u, closed, force=None, switching=frozenset()):
         if bounded:
             opti.subject_to(opti.bounded(lower[bounded], x[bounded], upper[bounded]))
-        if path_fn is not None:
+        if path_rows is not None:
+            function, low, up = path_rows
+            repeated.bounded(low, function, up, x, u)
+        elif path_fn is not None:
             size = path.expression.shape[0]
-            if repeated is not None and not timed_path:
-                function, low, up = node_function("path", lambda xs, us: [(
-                    np.broadcast_to(path.lower, size), path_fn(y_of(xs, 0.0), us),
-                    np.broadcast_to(path.upper, size))])
-                repeated.bounded(low, function, up, x, u)
-            else:
-                opti.subject_to(opti.bounded(np.broadcast_to(path.lower, size),
-                                             path_fn(y_of(x, t), u),
-                                             np.broadcast_to(path.upper, size)))
+            opti.subject_to(opti.bounded(np.broadcast_to(path.lower, size),
+                                         path_fn(y_of(x, t), u),
+                                         np.broadcast_to(path.upper, size)))
         contact_rows(x, u, closed, force, switching)
 
-    def contact_row_values(x, u, closed, switching, lam) -> list:
-        """The stance's rows at node x as expressions >= 0 (`contact_rows`)."""
+    def open_rows(x, closed, switching) -> list:
+        """The open contacts' rows at node x as expressions >= 0 (`contact_rows`)."""
         open_ = [i for i in range(cls.n_contacts) if i not in closed and i not in switching]
         rows = [dyn.gaps(x)[open_]] if open_ else []
         for i in open_:
             if gains[i] is not None:  # no skimming: v_t = 0 where the gap is zero
                 rows.append(gains[i] * dyn.gaps(x)[i] - dyn.slip_squared(x)[i])
-        if closed:
-            lam = dyn.force(closed)(x, u) if lam is None else lam
-            rows += cone_rows(lam, dyn.sizes(closed), dyn.mu, closed, options.cone_margin)
         return rows
 
     def contact_rows(x, u, closed, force=None, switching=frozenset()):
@@ -771,19 +734,22 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
         at zero gap K gap_i - ||v_t||^2 >= 0 holds only with v_t = 0, a row whose gradient
         in v vanishes there (its multiplier unbounded: IPOPT's convergence suffers)."""
         if repeated is not None and force is None:
-            key = ("contacts", tuple(closed), frozenset(switching))
-            function, low, up = node_function(key, lambda xs, us: [
-                (0.0, row, np.inf) for row in contact_row_values(xs, us, closed, switching,
-                                                                 None)])
+            key = (tuple(closed), frozenset(switching))
+            if key not in contact_functions:
+                xs, us = ca.SX.sym("x", 2 * n_q), ca.SX.sym("u", n_u)
+                rows = open_rows(xs, closed, switching)
+                if closed:
+                    rows += cone_rows(dyn.force(closed)(xs, us), dyn.sizes(closed), dyn.mu,
+                                      closed, options.cone_margin)
+                contact_functions[key] = bounded_rows(
+                    f"contact_rows_{len(contact_functions)}", [xs, us],
+                    [(0.0, row, np.inf) for row in rows])
+            function, low, up = contact_functions[key]
             if function.numel_out(0):
                 repeated.bounded(low, function, up, x, u)
             return
-        open_ = [i for i in range(cls.n_contacts) if i not in closed and i not in switching]
-        if open_:
-            opti.subject_to(dyn.gaps(x)[open_] >= 0)
-        for i in open_:
-            if gains[i] is not None:  # no skimming: v_t = 0 where the gap is zero
-                opti.subject_to(gains[i] * dyn.gaps(x)[i] - dyn.slip_squared(x)[i] >= 0)
+        for row in open_rows(x, closed, switching):
+            opti.subject_to(row >= 0)
         if closed:
             if force is not None:
                 lam = force
@@ -936,14 +902,11 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     evaluation_time = ipopt_time = 0.0
     for restart in range(options.capped_restarts + 1):
         opti.solver("ipopt", plugin, ipopt)
-        begin = time.perf_counter()
-        sol = solve_guarded(opti, options.blas_threads)
-        stats = sol.stats()
-        in_ipopt = float(stats.get("t_wall_total", 0.0))
-        build_time += time.perf_counter() - begin - in_ipopt  # each solve builds its solver
+        sol, building, in_ipopt, evaluations = solve_timed(opti, options.blas_threads)
+        build_time += building  # each solve builds its solver
         ipopt_time += in_ipopt
-        evaluation_time += sum(float(v) for key, v in stats.items()
-                               if key.startswith("t_wall_nlp_"))
+        evaluation_time += evaluations
+        stats = sol.stats()
         status = str(stats.get("return_status", "unknown"))
         iterations += int(stats.get("iter_count", 0))
         if status != CAPPED or restart == options.capped_restarts:
@@ -989,9 +952,9 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     plan = StancePlan(stances=solved_stances, t=times, x=node_x, u=u_value,
                       boundary_states=boundary_x, cost=float(sol.value(opti.f)),
                       ipopt_status=status, iterations=iterations, solve_time=solve_time,
-                      verification=verification, build_time=build_time,
-                      evaluation_time=evaluation_time, ipopt_time=ipopt_time,
-                      n_variables=int(opti.nx), n_constraints=int(opti.ng))
+                      verification=verification,
+                      timing=NlpTiming(build_time, ipopt_time, evaluation_time, int(opti.nx),
+                                       int(opti.ng)))
     if verbose:
         print(plan.summary(), flush=True)
     return plan

@@ -408,9 +408,7 @@ class StanceResolve(Stage):
         solver = {"status": status, "objective": plan.cost, "wall_time": plan.solve_time,
                   "ipopt_status": plan.ipopt_status, "iterations": plan.iterations,
                   "stances": [dataclasses.asdict(s) for s in plan.stances],
-                  "timing": {"build": plan.build_time, "ipopt": plan.ipopt_time,
-                             "evaluations": plan.evaluation_time,
-                             "n_variables": plan.n_variables},
+                  "timing": None if plan.timing is None else dataclasses.asdict(plan.timing),
                   "method": "exact re-solve along the stances (tfcontact.ocp.stances): "
                             + ("Radau IIA collocation" if options.integrator == "radau"
                                else "RK4 multiple shooting")
