@@ -101,10 +101,14 @@ def bounded_rows(name: str, inputs: list[ca.SX], rows: list[tuple]
             np.concatenate(upper) if upper else np.zeros(0))
 
 
-def interpolate(t: np.ndarray, x: np.ndarray, at: float) -> np.ndarray:
-    """The samples x (rows at times t) linearly interpolated at `at` (clipped to [t_0, t_n];
-    at a repeated time, an impact's two samples, the later one)."""
-    i = int(np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 2))
+def interpolate(t: np.ndarray, x: np.ndarray, at: float,
+                left_limit: bool = False) -> np.ndarray:
+    """The samples x (rows at times t) linearly interpolated at `at` (clipped to [t_0, t_n]).
+    At a repeated time, an impact's two samples: the later one (the post-impact state), or
+    with `left_limit` the earlier one (the state a piece ending at the impact reaches;
+    the later one there starts a re-solve's collocation rows off by the velocity jump)."""
+    side = "left" if left_limit else "right"
+    i = int(np.clip(np.searchsorted(t, at, side=side) - 1, 0, len(t) - 2))
     w = float(np.clip((at - t[i]) / max(t[i + 1] - t[i], 1e-12), 0.0, 1.0))
     return (1 - w) * x[i] + w * x[i + 1]
 

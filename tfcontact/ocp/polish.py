@@ -670,7 +670,8 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
                     for j in range(tableau.stages):
                         z = opti.variable(2 * n_q)
                         opti.set_initial(z, interpolate(
-                            guess_t, guess_x, ga + (i + tableau.c[j]) * (gb - ga) / n_steps))
+                            guess_t, guess_x, ga + (i + tableau.c[j]) * (gb - ga) / n_steps,
+                            left_limit=True))
                         stages.append(z)
                     if repeated is not None:
                         repeated.zero(dyn.collocation(mode, tableau), x, *stages, u_k, h)
@@ -706,7 +707,7 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
                 cost = cost + h / 2 * (running(y_of(x_start, ta + i * h), u_k)
                                        + running(y_of(x_next, ta + (i + 1) * h), u_k))
                 t_guess = ga + (i + 1) * (gb - ga) / n_steps
-                opti.set_initial(x, interpolate(guess_t, guess_x, t_guess))
+                opti.set_initial(x, interpolate(guess_t, guess_x, t_guess, left_limit=True))
                 nodes.append((tb if i == n_steps - 1 else ta + (i + 1) * h, x))
                 constrain_node(x, ta + (i + 1) * h, u_k, mode)
             if jb is None:

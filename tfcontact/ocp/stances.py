@@ -809,7 +809,8 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                     for j in range(tableau.stages):
                         z = opti.variable(2 * n_q)
                         opti.set_initial(z, interpolate(
-                            guess_t, guess_x, ga + (i + tableau.c[j]) * (gb - ga) / n_steps))
+                            guess_t, guess_x, ga + (i + tableau.c[j]) * (gb - ga) / n_steps,
+                            left_limit=True))
                         stages.append(z)
                     if options.inverse_dynamics:
                         terms = [lifted_terms(z, u_k, closed) for z in stages]
@@ -849,7 +850,8 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                 cost = cost + h / 2 * (running(y_of(x_start, t0), u_k)
                                        + running(y_of(x_next, t0 + h), u_k))
                 opti.set_initial(x, interpolate(guess_t, guess_x,
-                                                 ga + (i + 1) * (gb - ga) / n_steps))
+                                                 ga + (i + 1) * (gb - ga) / n_steps,
+                                                 left_limit=True))
                 t_node = tb if i == n_steps - 1 else t0 + h
                 nodes.append((t_node, x))
                 constrain_node(x, t_node, u_k, closed, None,
