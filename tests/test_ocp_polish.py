@@ -461,3 +461,24 @@ def test_a_plan_re_solved_on_its_own_mesh_starts_on_its_dynamics(monkeypatch):
     equal = lower == upper
     assert equal.sum() > 5000 and sum(p.mode == polish.FLIGHT for p in plan.phases) == 3
     assert np.max(np.abs(g - lower)[equal]) < 1e-8
+
+
+def test_terminal_rows_the_final_stance_holds_are_left_to_it():
+    """A particle (x, z) ending in stick on the ground z = 0 keeps z, v_z and v_x from its
+    touchdown: of the terminal rows x(T) = (q, v)_goal only the combination along x stays;
+    of q(T) = q_goal the same; in flight all stay, and in slip v_x is free to change."""
+    import casadi as ca
+
+    dyn = polish.HybridDynamics(point_mass(2, mu=0.5))
+    x = ca.SX.sym("x", 4)
+    state = ca.Function("state", [x], [x])
+    position = ca.Function("position", [x], [x[:2]])
+    end = np.array([0.7, 0.0, 0.0, 0.0])
+    for terminal, n_rows in ((state, 4), (position, 2)):
+        kept = polish.terminal_rows_not_held(terminal, dyn.held(polish.STICK), end)
+        np.testing.assert_allclose(np.abs(kept), np.eye(n_rows)[:1], atol=1e-12)
+        np.testing.assert_array_equal(
+            polish.terminal_rows_not_held(terminal, dyn.held(polish.FLIGHT), end),
+            np.eye(n_rows))
+    kept = polish.terminal_rows_not_held(state, dyn.held("slip+"), np.array([0.7, 0, 1.0, 0]))
+    np.testing.assert_allclose(kept.T @ kept, np.diag([1.0, 0, 1, 0]), atol=1e-12)

@@ -393,10 +393,22 @@ class HybridDynamics:
             "free_normal", [x, u], [ca.mtimes(jac[:, 0].T, minv_f) + drift[0]])
         self.gap = ca.Function("gap", [x], [contact.gap])
         self.velocity = ca.Function("velocity", [x], [vel])  # (v_n, v_t)
+        # what each mode's dynamics keep from its start: the gap and the normal velocity
+        # in contact, and the tangential velocity too in stick
+        self._held = {STICK: ca.vertcat(contact.gap, vel),
+                      **{mode: ca.vertcat(contact.gap, vel[0]) for mode in ("slip+", "slip-")},
+                      FLIGHT: ca.SX(0, 1)}
+        self._x = x
         self.delassus = ca.Function("delassus", [x], [delassus])
         impulse = -solve_delassus(delassus, vel)
         self.impact = ca.Function("impact", [x], [ca.vertcat(q, v + minv_j @ impulse), impulse])
         self._rk4: dict = {}
+
+    def held(self, mode: str) -> ca.Function:
+        """x -> what `mode`'s dynamics keep constant from the mode's start (the contact's
+        gap and normal velocity in contact, its tangential velocity too in stick)."""
+        return ca.Function(f"held_{mode.replace('+', 'p').replace('-', 'm')}", [self._x],
+                           [self._held[mode]])
 
     def rk4(self, mode: str, steps: int) -> ca.Function:
         """`steps` RK4 steps of length h / steps as one SX function (x, u, h) -> x+."""
@@ -435,6 +447,35 @@ class HybridDynamics:
         k3 = f(x + h / 2 * k2, u)
         k4 = f(x + h * k3, u)
         return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
+def terminal_rows_not_held(terminal: ca.Function, held: ca.Function,
+                           x_end: np.ndarray) -> np.ndarray:
+    """Rows P (orthonormal, m' x m) of the m terminal equalities c(x_T) = b to impose as
+    P (c(x_T) - b) = 0: the combinations of them the final phase's dynamics do not hold
+    already. A contact that ends the plan closed keeps its gap (and its velocity) from
+    its touchdown or the start: where c = b also fixes the gap (the monoped's q(T) = goal
+    standing), asking it again makes the rows dependent, and IPOPT's multipliers grow with
+    the mesh (4e11 measured on the refined monoped; the collocation holds the gap to its
+    drift). Each held quantity whose gradient at `x_end` lies in the span of c's is
+    dropped from c; the check of the terminal constraint at the plan's end stays
+    (`tfcontact.ocp.chain.path_violation`)."""
+    x = ca.SX.sym("x", terminal.size1_in(0))
+    jac_c = np.atleast_2d(np.asarray(ca.Function("jac_c", [x], [ca.jacobian(terminal(x), x)])(
+        x_end)))
+    jac_h = np.atleast_2d(np.asarray(ca.Function("jac_h", [x], [ca.jacobian(held(x), x)])(
+        x_end)))
+    implied = []
+    for h in jac_h if held.numel_out(0) else ():
+        w = np.linalg.lstsq(jac_c.T, h, rcond=None)[0]
+        if np.linalg.norm(jac_c.T @ w - h) <= 1e-9 * max(np.linalg.norm(h), 1.0):
+            implied.append(w)  # c = b implies this held quantity's value (to first order)
+    m = jac_c.shape[0]
+    if not implied:
+        return np.eye(m)
+    basis, singular, _ = np.linalg.svd(np.array(implied).T)
+    rank = int(np.sum(singular > 1e-9 * singular[0]))
+    return basis[:, rank:].T
 
 
 def touchdown_rows(w, v_n, v_t, sign: float, mu, cone_margin=1.0) -> list[tuple]:
@@ -737,9 +778,20 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
         boundary.append(x)
     y_end = y_of(x, horizon)
     if terminal_fn is not None:
-        opti.subject_to(opti.bounded(np.broadcast_to(terminal.lower, terminal.expression.shape[0]),
-                                     terminal_fn(y_end),
-                                     np.broadcast_to(terminal.upper, terminal.expression.shape[0])))
+        n_rows = terminal.expression.shape[0]
+        lower = np.broadcast_to(np.asarray(terminal.lower, dtype=float), n_rows)
+        upper = np.broadcast_to(np.asarray(terminal.upper, dtype=float), n_rows)
+        value = terminal_fn(y_end)
+        equal = np.flatnonzero(lower == upper)
+        other = np.flatnonzero(lower != upper)
+        if other.size:
+            opti.subject_to(opti.bounded(lower[other], value[other.tolist()], upper[other]))
+        if equal.size:
+            xs = ca.SX.sym("x", 2 * n_q)
+            kept = terminal_rows_not_held(
+                ca.Function("terminal_x", [xs], [terminal_fn(y_of(xs, horizon))[equal.tolist()]]),
+                dyn.held(phases[-1].mode), interpolate(guess_t, guess_x, horizon))
+            opti.subject_to(ca.mtimes(kept, value[equal.tolist()] - lower[equal]) == 0)
     opti.minimize(cost + terminal_cost(y_end))
     derivatives = ({} if repeated is None
                    else repeated.derivative_options(options.threads))
