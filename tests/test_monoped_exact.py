@@ -87,6 +87,14 @@ def test_tiled_guess_repeats_the_hop_on_the_schedule():
         (a, a + 0.3) for a in other.lift_offs]
     assert x_guess[1, 4] == pytest.approx(0.6 / 0.375)
     assert x_guess[-1, 0] == pytest.approx(3.0) and t_guess[-1] == pytest.approx(2.5)
+    # the hop's own phases cut it: a hop landing at 0.8 s fills the first flight slot
+    # (0.5-0.76 s) with its q_x from 0.6 to 0.8 m
+    phases = (*hop.phases[:2], Phase(FLIGHT, 0.6, 0.8), Phase(STICK, 0.8, 1.0))
+    (t_guess, x_guess, _), _ = tiled_guess(dataclasses.replace(hop, phases=phases),
+                                           EXACT_TASK)
+    flight = slice(25, 50)  # each segment is 25 samples: the first stance, the flight
+    np.testing.assert_allclose(t_guess[flight][[0, -1]], [0.5, 0.76])
+    np.testing.assert_allclose(x_guess[flight, 0][[0, -1]], [0.6, 0.8])
 
 
 def _hop() -> PolishedPlan:

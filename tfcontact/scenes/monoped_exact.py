@@ -112,9 +112,6 @@ HAND_SET_SCHEDULE = Schedule(lift_offs=(0.5, 1.25, 2.0), flight_time=0.26)
 """The schedule of the earlier verified plan (benchmarks/monoped_exact_plan.npz,
 `tfcontact plan monoped --task hand-set`): set by hand from the reduced hop (time scaled
 by 5/6), lift-offs at control jumps (T / N = 0.125 s)."""
-HOP_LIFT_OFF, HOP_TOUCHDOWN = 0.6, 0.89
-"""The reduced hop's lift-off and touchdown [s] as the tiling uses them (the measured hops:
-0.600 and 0.881 s; the verified full plans were made with these numbers)."""
 SLIP_START = 0.55
 """Guessed start [s] of the reduced hop's slip before its lift-off."""
 RADAU_ELEMENTS = 12
@@ -144,12 +141,13 @@ def tiled_guess(hop: PolishedPlan, task: MonopedTask = EXACT_TASK,
                 ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], tuple[Phase, ...]]:
     """The reduced hop once per lift-off of `schedule`: ((t, x, u), phases) as a guess of
     the full task. Each segment of the hop (stance before the lift-off, flight, last
-    stance) is time scaled onto its slot, velocities divided and torques by the square of
-    the scale, q_x moved one metre per hop."""
+    stance: the hop's own phases) is time scaled onto its slot, velocities divided and
+    torques by the square of the scale, q_x moved one metre per hop."""
     if schedule.lift_offs[-1] + schedule.flight_time >= task.horizon:
         raise InvalidInput(f"the schedule's last hop lands after the horizon {task.horizon} s")
     lift_offs, flight_time = schedule.lift_offs, schedule.flight_time
-    lift_off, touchdown = HOP_LIFT_OFF, HOP_TOUCHDOWN
+    flight = next(p for p in hop.phases if p.mode == FLIGHT)
+    lift_off, touchdown = flight.start, flight.end
     hop_end = hop.phases[-1].end
     segments = []  # (start, end, start in the hop, end in the hop, hop index)
     previous = 0.0
