@@ -107,6 +107,28 @@ def test_a_level_may_set_its_options_from_the_laststand_in_plan(reduced, stand_i
         refine_by_defects(base, 12)(None, reduced)
 
 
+def test_a_level_that_would_solve_the_last_plans_nlp_again_is_skipped(reduced, stand_ins):
+    """The first level's plan converged with every local defect within its share: the
+    refined mesh is the same mesh, so its NLP is not solved again (it took 24 iterations
+    and 32 s on the monoped to return the same plan); a level after a failed one is."""
+    def fake(options, passed=True):
+        plan = stand_in_plan("Solve_Succeeded", 1.0, verification=types.SimpleNamespace(
+            passed=passed, summary=str, local_defects=(1e-4,) * 10))
+        return dataclasses.replace(plan, integrator=options.integrator,
+                                   substeps=options.substeps_per_interval(10))
+
+    calls = stand_ins(fake)
+    base = PolishOptions(substeps=12, integrator="radau")
+    levels = [ResolveLevel("coarse", reduced, base),
+              ResolveLevel("refined", reduced, refine_by_defects(base, 12))]
+    result = resolve_chain(levels, (Phase(STICK, 0, 1),), None, verbose=False)
+    assert len(calls) == 1 and [s.name for s in result.steps] == ["coarse"]
+    assert result.status == "converged" and result.plan.substeps == (12,) * 10
+    calls = stand_ins(lambda options: fake(options, passed=False))
+    result = resolve_chain(levels, (Phase(STICK, 0, 1),), None, verbose=False)
+    assert len(calls) == 1 + 2 and result.status == "verification_failed"  # one list
+
+
 def test_a_chain_and_its_levels_are_checked(reduced):
     with pytest.raises(InvalidInput, match="at least one level"):
         resolve_chain([], (Phase(STICK, 0, 1),), None, verbose=False)

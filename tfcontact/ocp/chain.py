@@ -181,12 +181,21 @@ def resolve_chain(levels: Sequence[ResolveLevel], phases: tuple[Phase, ...],
         raise InvalidInput("a chain of re-solves needs at least one level")
     begin_chain = time.perf_counter()
     steps = list(steps)
-    plan = None
+    plan = solved_with = None
     for i, level in enumerate(levels):
         last = i == len(levels) - 1
         options = level.options
         if not isinstance(options, PolishOptions):  # settings from the last plan
             options = options(plan, level.problem)
+        if (plan is not None and plan.success
+                and solved_with == _nlp_of(level.problem, options)):
+            # e.g. a mesh refined where no local defect exceeds its share: the same NLP
+            # again, from its own solution
+            if verbose:
+                print(f"exact re-solve: {level.name}: the last plan is this level's "
+                      "(same problem and options), verified; not solved again", flush=True)
+            continue
+        solved_with = _nlp_of(level.problem, options)
         for attempt in range(2 if last else 1):
             label = level.name if attempt == 0 else f"{level.name}, again from its capped iterate"
             if verbose:
@@ -212,6 +221,13 @@ def resolve_chain(levels: Sequence[ResolveLevel], phases: tuple[Phase, ...],
                         time.perf_counter() - begin_chain,
                         message="" if plan.solved else f"{levels[-1].name}: IPOPT "
                                                        f"{plan.ipopt_status}")
+
+
+def _nlp_of(problem: ContactProblem, options: PolishOptions) -> tuple:
+    """What decides a level's NLP: its problem (by identity) and options, the mesh per
+    interval spelled out (12 and (12,) * N are the same mesh)."""
+    mesh = options.substeps_per_interval(problem.n_intervals)
+    return id(problem), dataclasses.replace(options, substeps=mesh)
 
 
 def refine_by_defects(base: PolishOptions, default_substeps: int
