@@ -5,9 +5,9 @@ of differentiating the exact re-solves, side by side in one run (benchmarks/mono
     python scripts/bench_monoped.py --task full --routes element
 
 Each route runs `tfcontact plan monoped --task TASK` in a child process of its own, one
-after the other: "element" (the shipped `monoped_exact.RESOLVE_DERIVATIVES`: the RK4
-re-solves' shooting steps, contact and path rows differentiated once, evaluated on two
-threads) and "plain" (CasADi differentiates each whole NLP, the route before
+after the other: "element" (the shipped `monoped_exact.RESOLVE_DERIVATIVES`: the
+re-solves' shooting steps or collocation elements, contact and path rows differentiated
+once, evaluated on two threads) and "plain" (CasADi differentiates each whole NLP, the route before
 2026-11-28). Per step of the plan (the discovery, each re-solve level, each schedule
 candidate): IPOPT iterations, seconds, of which the build (the NLP and its derivatives)
 and IPOPT (of which CasADi's evaluations; the rest is IPOPT's own, mostly MUMPS), the NLP's
@@ -64,7 +64,7 @@ def measure(route: str, task: str) -> tuple[dict, list[dict]]:
 def rows(route: str, summary: dict, solver: dict, wall: float, peak: float
          ) -> tuple[dict, list[dict]]:
     """The plan's row and its steps' rows from its summary.json and its trajectory's
-    `solver` entry (the chain's steps), its wall time [s] and peak memory [GB]."""
+    `solver` entry (the chain's steps), its wall time [s] and the child's maxrss [GB]."""
     plan = {"route": route, "status": summary["status"],
             "objective": solver.get("objective", "-"), "wall [s]": wall,
             "peak memory [GB]": peak}
@@ -80,6 +80,10 @@ def rows(route: str, summary: dict, solver: dict, wall: float, peak: float
               "peak [GB]": value(step, "peak_memory"),
               "objective": f"{step['objective']:.6g}", "status": step["status"]}
              for step in solver.get("steps", [])]
+    # the chain resets the process's high-water mark before each step (and the child's
+    # maxrss with it): the plan's peak is the largest of the steps' and what came after
+    plan["peak memory [GB]"] = max([peak] + [s["peak [GB]"] for s in steps
+                                             if isinstance(s["peak [GB]"], float)])
     return plan, steps
 
 

@@ -146,6 +146,9 @@ def test_monoped_bench_tabulates_each_step_and_sets_its_route(load_script, monke
     assert steps[1]["evaluations [s]"] == 20.25 and steps[1]["variables"] == 1675
     table = bench.markdown_table(bench.STEP_COLUMNS, steps).splitlines()
     assert "| 20.25 | 1675 | 0.61 | 150.268 | converged |" in table[3]
+    # a step's peak above the child's maxrss (reset by the chain before each step) counts
+    plan, _ = bench.rows("element", {"status": "converged"}, solver, 215.0, 0.5)
+    assert plan["peak memory [GB]"] == 0.61
 
     seen = []
     monkeypatch.setattr(monoped_exact, "RESOLVE_DERIVATIVES", monoped_exact.RESOLVE_DERIVATIVES)

@@ -183,7 +183,10 @@ def test_the_searched_schedule_s_re_solve_starts_the_rest_of_the_chain(monkeypat
                            steps=start.steps, verbose=False)
     names = [step.name for step in result.steps]
     assert names[0] == "exact re-solve, 8 nodes"  # the reduced hop's steps come first
-    assert len(names) == 1 + 5 + 4 and all("lift-offs" in n for n in names[1:6])
+    # 5 candidates, then 3 levels: the refined mesh is the 12-element one (every local
+    # defect within its share), the same NLP, so not solved again
+    assert len(names) == 1 + 5 + 3 and all("lift-offs" in n for n in names[1:6])
+    assert names[-1].startswith("full task, TF-9's ellipses, Radau IIA order 5, 12 elements")
     assert "lift-offs 0.375, 1.125, 1.875 s" in names[2] and result.steps[2].objective == 190.0
     assert names[6] == "full task, bump holes, 16 nodes x 2 RK4 steps"
     assert guesses[5][1][0, 0] == 190.0  # the chosen candidate's states

@@ -124,11 +124,10 @@ RADAU_CONE_MARGIN = 0.98
 slipped and parted from it by 3.2."""
 
 RESOLVE_DERIVATIVES: dict[str, object] = {"element_derivatives": True, "threads": 2}
-"""How the chain's RK4 re-solves are differentiated (`PolishOptions.element_derivatives`
-and `threads`): each shooting step, contact and path row once, evaluated on two threads
-(the Radau levels keep CasADi's own: `radau_options`). {}: CasADi differentiates each
-whole NLP, the route before 2026-11-28 (`scripts/bench_monoped.py` runs both;
-benchmarks/monoped_bench.md)."""
+"""How the chain's re-solves are differentiated (`PolishOptions.element_derivatives`
+and `threads`): each shooting step or collocation element, contact and path row once,
+evaluated on two threads. {}: CasADi differentiates each whole NLP, the route before
+2026-11-28 (`scripts/bench_monoped.py` runs both; benchmarks/monoped_bench.md)."""
 
 
 def resolve_options(**settings) -> PolishOptions:
@@ -242,10 +241,11 @@ def search_schedule(hop: PolishedPlan, schedules: tuple[Schedule, ...], problem:
 def radau_options(substeps: int | tuple[int, ...] = RADAU_ELEMENTS) -> PolishOptions:
     """TF-9's scheme (Radau IIA, order 5) on `substeps` elements per control interval,
     the stick forces kept 2 % inside the friction cone (`RADAU_CONE_MARGIN`)."""
-    # CasADi's own derivatives: with element derivatives the refined level from the saved
-    # RK4 plan ended nlp_failed (tests/test_monoped_radau_levels.py; monoped_bench.md)
-    return PolishOptions(substeps=substeps, integrator="radau", painleve_margin=0.0,
-                         cone_margins=(RADAU_CONE_MARGIN,))
+    # element derivatives as in the RK4 levels (until the warm starts at impacts and the
+    # terminal rows were mended, the refined level from the saved RK4 plan ended
+    # nlp_failed with them: monoped_bench.md)
+    return resolve_options(substeps=substeps, integrator="radau", painleve_margin=0.0,
+                           cone_margins=(RADAU_CONE_MARGIN,))
 
 
 # ---- saved plans -------------------------------------------------------------------------
