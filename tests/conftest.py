@@ -34,13 +34,14 @@ def load_script():
     return load
 
 
-# The suite's longest files, longest first (measured on 2 cores: the Radau levels 12
-# minutes, the reduced monoped end to end 7, the hopper's long plan 3). pytest-xdist hands
-# out whole files in collection order (`--dist loadfile`), so these go first: each starts
-# on a worker of its own and the short files fill in beside them, instead of two long
-# files queuing on one worker at the end.
-LONGEST_FIRST = ("test_monoped_radau_levels.py", "test_monoped_exact.py",
-                 "test_plans_hopper.py")
+# The suite's longest files, longest first (measured on 2 cores, 2026-11-28: the sweeps
+# 4.5 minutes, the hopper's plans 4, the task files 3, the pipeline and the monoped's
+# plans under 2 each). pytest-xdist hands out whole files in collection order
+# (`--dist loadfile`), so these go first: each starts on a worker of its own and the
+# short files fill in beside them, instead of two long files queuing on one worker at
+# the end.
+LONGEST_FIRST = ("test_sweep.py", "test_plans_hopper.py", "test_task.py", "test_pipeline.py",
+                 "test_monoped_exact.py")
 
 
 def pytest_collection_modifyitems(config, items):
