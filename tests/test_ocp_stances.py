@@ -156,8 +156,14 @@ def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens(inverse_dynamics,
 
 def test_cone_rows_planar_and_spatial():
     # planar (lambda_n, lambda_t) and 3-D (lambda_n, lambda_t1, lambda_t2)
-    rows = cone_rows([2.0, 1.0, 3.0, 1.0, 1.0], [2, 3], [0.5, 0.5], (0, 1), 1.0)
+    rows = cone_rows([2.0, 1.0, 3.0, 1.0, 1.0], [2, 3], [0.5, 0.5], (0, 1), 1.0,
+                     keep_normal=True)
     np.testing.assert_allclose([float(r) for r in rows], [2.0, 0.0, 2.0, 3.0, 2.25 - 2.0])
+    # planar with c mu > 0: the two cone rows imply lambda_n >= 0, which is left out
+    # (at a vanishing impulse the three rows were active and dependent)
+    rows = cone_rows([2.0, 1.0, 3.0, 1.0, 1.0], [2, 3], [0.5, 0.5], (0, 1), 1.0)
+    np.testing.assert_allclose([float(r) for r in rows], [0.0, 2.0, 3.0, 2.25 - 2.0])
+    assert len(cone_rows([0.0, 0.0], [2], [0.0], (0,), 1.0)) == 3  # frictionless: kept
 
 
 def test_the_schedule_of_samples_keeps_the_order_of_touchdowns_and_lift_offs():

@@ -512,15 +512,19 @@ class StanceDynamics:
 
 
 def cone_rows(values, sizes: list[int], mu: list[float], closed: tuple[int, ...],
-              margin: float) -> list:
+              margin: float, keep_normal: bool = False) -> list:
     """Expressions >= 0 that hold the closed contacts' forces (or impulses) in their cones:
     lambda_n >= 0 and (c mu lambda_n)^2 - ||lambda_t||^2 >= 0 (planar: c mu lambda_n -+
-    lambda_t >= 0, linear). Numbers or CasADi expressions."""
+    lambda_t >= 0, linear, and with c mu > 0 no row lambda_n >= 0: the two imply it, and
+    at a vanishing force or impulse, a soft landing's, the three rows were all active and
+    dependent; `keep_normal` keeps it, for measuring violations). Numbers or CasADi
+    expressions."""
     rows = []
     offset = 0
     for size, i in zip(sizes, closed, strict=True):
         normal = values[offset]
-        rows.append(normal)
+        if keep_normal or size != 2 or not margin * mu[i] > 0:
+            rows.append(normal)
         if size == 2:
             rows += [margin * mu[i] * normal - values[offset + 1],
                      margin * mu[i] * normal + values[offset + 1]]
@@ -1036,7 +1040,7 @@ def verify_stances(problem: ContactProblem, stances: tuple[Stance, ...], t: np.n
         u_k = u[min(int(middle / dt), n_int - 1)]
         for j in (i, i + 1):
             lam = np.asarray(dyn.force(closed)(x[j], u_k)).ravel()
-            rows = cone_rows(lam, dyn.sizes(closed), dyn.mu, closed, 1.0)
+            rows = cone_rows(lam, dyn.sizes(closed), dyn.mu, closed, 1.0, keep_normal=True)
             worst = max(worst, -min(float(r) for r in rows))
             largest = max(largest, float(np.max(np.abs(lam))))
     node_t = t
