@@ -791,7 +791,8 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
             kept = terminal_rows_not_held(
                 ca.Function("terminal_x", [xs], [terminal_fn(y_of(xs, horizon))[equal.tolist()]]),
                 dyn.held(phases[-1].mode), interpolate(guess_t, guess_x, horizon))
-            opti.subject_to(ca.mtimes(kept, value[equal.tolist()] - lower[equal]) == 0)
+            if kept.shape[0]:  # (none when the stance holds every terminal equality)
+                opti.subject_to(ca.mtimes(kept, value[equal.tolist()] - lower[equal]) == 0)
     opti.minimize(cost + terminal_cost(y_end))
     derivatives = ({} if repeated is None
                    else repeated.derivative_options(options.threads))
