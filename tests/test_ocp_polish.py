@@ -475,12 +475,12 @@ def test_terminal_rows_the_final_stance_holds_are_left_to_it():
     position = ca.Function("position", [x], [x[:2]])
     end = np.array([0.7, 0.0, 0.0, 0.0])
     for terminal, n_rows in ((state, 4), (position, 2)):
-        kept = polish.terminal_rows_not_held(terminal, dyn.held(polish.STICK), end)
+        kept = polish.terminal_rows_not_held(terminal, dyn.held[polish.STICK], end)
         np.testing.assert_allclose(np.abs(kept), np.eye(n_rows)[:1], atol=1e-12)
         np.testing.assert_array_equal(
-            polish.terminal_rows_not_held(terminal, dyn.held(polish.FLIGHT), end),
+            polish.terminal_rows_not_held(terminal, dyn.held[polish.FLIGHT], end),
             np.eye(n_rows))
     height = ca.Function("height", [x], [x[1]])  # all of it held: no row left
-    assert polish.terminal_rows_not_held(height, dyn.held(polish.STICK), end).shape == (0, 1)
-    kept = polish.terminal_rows_not_held(state, dyn.held("slip+"), np.array([0.7, 0, 1.0, 0]))
+    assert polish.terminal_rows_not_held(height, dyn.held[polish.STICK], end).shape == (0, 1)
+    kept = polish.terminal_rows_not_held(state, dyn.held["slip+"], np.array([0.7, 0, 1.0, 0]))
     np.testing.assert_allclose(kept.T @ kept, np.diag([1.0, 0, 1, 0]), atol=1e-12)

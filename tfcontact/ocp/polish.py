@@ -393,22 +393,15 @@ class HybridDynamics:
             "free_normal", [x, u], [ca.mtimes(jac[:, 0].T, minv_f) + drift[0]])
         self.gap = ca.Function("gap", [x], [contact.gap])
         self.velocity = ca.Function("velocity", [x], [vel])  # (v_n, v_t)
-        # what each mode's dynamics keep from its start: the gap and the normal velocity
-        # in contact, and the tangential velocity too in stick
-        self._held = {STICK: ca.vertcat(contact.gap, vel),
-                      **{mode: ca.vertcat(contact.gap, vel[0]) for mode in ("slip+", "slip-")},
-                      FLIGHT: ca.SX(0, 1)}
-        self._x = x
+        # x -> what each mode's dynamics keep from the mode's start: the gap and the
+        # normal velocity in contact, and the tangential velocity too in stick
+        held = {STICK: ca.vertcat(contact.gap, vel), "slip+": ca.vertcat(contact.gap, vel[0]),
+                "slip-": ca.vertcat(contact.gap, vel[0]), FLIGHT: ca.SX(0, 1)}
+        self.held = {mode: ca.Function("held", [x], [value]) for mode, value in held.items()}
         self.delassus = ca.Function("delassus", [x], [delassus])
         impulse = -solve_delassus(delassus, vel)
         self.impact = ca.Function("impact", [x], [ca.vertcat(q, v + minv_j @ impulse), impulse])
         self._rk4: dict = {}
-
-    def held(self, mode: str) -> ca.Function:
-        """x -> what `mode`'s dynamics keep constant from the mode's start (the contact's
-        gap and normal velocity in contact, its tangential velocity too in stick)."""
-        return ca.Function(f"held_{mode.replace('+', 'p').replace('-', 'm')}", [self._x],
-                           [self._held[mode]])
 
     def rk4(self, mode: str, steps: int) -> ca.Function:
         """`steps` RK4 steps of length h / steps as one SX function (x, u, h) -> x+."""
@@ -790,7 +783,7 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
             xs = ca.SX.sym("x", 2 * n_q)
             kept = terminal_rows_not_held(
                 ca.Function("terminal_x", [xs], [terminal_fn(y_of(xs, horizon))[equal.tolist()]]),
-                dyn.held(phases[-1].mode), interpolate(guess_t, guess_x, horizon))
+                dyn.held[phases[-1].mode], interpolate(guess_t, guess_x, horizon))
             if kept.shape[0]:  # (none when the stance holds every terminal equality)
                 opti.subject_to(ca.mtimes(kept, value[equal.tolist()] - lower[equal]) == 0)
     opti.minimize(cost + terminal_cost(y_end))
