@@ -157,15 +157,3 @@ def test_the_path_constraints_are_measured_at_the_nodes():
         passed=True, summary=str)), mp.problem, (), path_violation(mp.problem, inside), 1.0)
     assert chain.status == "verification_failed" and not chain.success
     assert ResolveChain(None, mp.problem, (), float("nan"), 1.0).status == "chain_failed"
-
-
-def test_the_terminal_constraint_is_measured_at_the_end():
-    """The re-solve leaves the terminal rows the final stance holds to its dynamics
-    (`polish.terminal_rows_not_held`), so the chain checks q(T) = q_goal itself: the saved
-    plan's base ending 2 mm low misses it by 2 mm."""
-    plan = saved_plan(types.SimpleNamespace(passed=True))
-    mp = monoped_problem(EXACT_TASK)
-    x = plan.x.copy()
-    x[-1, 1] -= 2e-3
-    assert path_violation(mp.problem, dataclasses.replace(plan, x=x)) == pytest.approx(
-        2e-3, rel=1e-6)

@@ -253,6 +253,36 @@ def test_the_saved_full_plan_fails_with_node_times_off_the_horizon(saved_full_pl
         assert verification.clock_end_error == pytest.approx(1e-3)
 
 
+def test_the_saved_full_plan_fails_with_its_end_off_the_goal(saved_full_plan, tmp_path):
+    """The re-solve may leave terminal rows to the final stance's dynamics
+    (`polish.terminal_rows_not_held`), so the verification checks q(T) = q_goal itself:
+    the saved plan with its base ending 2 mm short (node and boundary) fails on that alone
+    (gap and local defects within their tolerances)."""
+    from tfcontact.scenes.monoped import monoped_problem
+    from tfcontact.scenes.monoped_exact import EXACT_TASK
+
+    problem = monoped_problem(EXACT_TASK).problem
+    end = saved_full_plan["boundary"][-1]
+    assert polish.terminal_violation(problem, end) <= 1e-6
+    moved = dict(saved_full_plan)
+    for name in ("boundary", "x"):
+        moved[name] = moved[name].copy()
+        moved[name][-1, 0] -= 2e-3
+    assert polish.terminal_violation(problem, moved["boundary"][-1]) == pytest.approx(
+        2e-3, rel=1e-6)
+    np.savez(tmp_path / "moved.npz", **moved)
+    verification, _ = verify_saved(tmp_path / "moved.npz")
+    assert not verification.passed
+    assert any("terminal constraint is violated by 0.002" in note
+               for note in verification.notes)
+    # the open-loop unstable plan passes its replay on the local defects' sum (as unmoved)
+    assert verification.open_loop_unstable
+    assert verification.defect_sum < verification.tolerances["end_state"]
+    assert verification.min_gap >= -verification.tolerances["gap"]
+    with pytest.raises(InvalidInput, match="terminal_tolerance"):
+        polish.PolishOptions(terminal_tolerance=0.0)
+
+
 def test_the_mesh_is_refined_where_the_local_defects_exceed_their_share():
     """Tolerance 0.05 over 4 intervals: a share of 0.0125 each; the second interval and the
     one the reference could not replay (nan) get twice the elements."""

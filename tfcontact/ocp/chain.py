@@ -94,8 +94,8 @@ class ResolveChain:
         problem: the last level's `ContactProblem`.
         steps: every solve, in order (with the stages before the chain, if given).
         path_violation: the largest violation of the problem's path constraints at the
-            plan's nodes and of its terminal constraint at its end (`path_violation`; NaN
-            without a plan).
+            plan's nodes (`path_violation`; NaN without a plan; the terminal constraint is
+            the plan's verification's).
         wall_time: seconds for the chain.
         message: why the chain stopped, when it failed.
     """
@@ -135,33 +135,23 @@ class ResolveChain:
 
 def path_violation(problem: ContactProblem, plan: PolishedPlan) -> float:
     """The largest violation of `problem.path` at the plan's nodes, each with the control
-    that drives it (`node_samples`), and of `problem.terminal` at its end; 0 without
-    either. A Radau plan's nodes are its stage points; an RK4 plan's are its shooting
-    nodes, not its inner steps. (The re-solve may leave a terminal row to the final
-    stance's dynamics, `polish.terminal_rows_not_held`: checked here.)"""
+    that drives it (`node_samples`); 0 without path constraints. A Radau plan's nodes are
+    its stage points; an RK4 plan's are its shooting nodes, not its inner steps. (The
+    terminal constraint is checked by the plan's verification, `polish.terminal_violation`.)"""
+    path = problem.path
+    if path is None or path.expression.numel() == 0:
+        return 0.0
     system = problem.system
     n_q = system.cls.n_q
     y = np.zeros((len(plan.t), system.y.numel()))
     y[:, system.q_index] = plan.x[:, :n_q]
     y[:, system.v_index] = plan.x[:, n_q:]
     y[:, system.clock_index] = plan.t
-    worst = 0.0
-    path, terminal = problem.path, problem.terminal
-    if path is not None and path.expression.numel() > 0:
-        u = node_samples(plan, system.cls)["u"]
-        values = np.asarray(ca.Function("path", [system.y, system.u], [path.expression])
-                            .map(len(plan.t))(y.T, u.T)).T
-        worst = max(worst, _violation(values, path.lower, path.upper))
-    if terminal is not None and terminal.expression.numel() > 0:
-        values = np.asarray(ca.Function("terminal", [system.y], [terminal.expression])(
-            y[-1])).reshape(1, -1)
-        worst = max(worst, _violation(values, terminal.lower, terminal.upper))
-    return worst
-
-
-def _violation(values: np.ndarray, lower, upper) -> float:
-    lower = np.broadcast_to(np.asarray(lower, dtype=float), values.shape[1:])
-    upper = np.broadcast_to(np.asarray(upper, dtype=float), values.shape[1:])
+    u = node_samples(plan, system.cls)["u"]
+    values = np.asarray(ca.Function("path", [system.y, system.u], [path.expression])
+                        .map(len(plan.t))(y.T, u.T)).T
+    lower = np.broadcast_to(np.asarray(path.lower, dtype=float), values.shape[1:])
+    upper = np.broadcast_to(np.asarray(path.upper, dtype=float), values.shape[1:])
     return float(max(0.0, np.max(lower - values), np.max(values - upper)))
 
 
