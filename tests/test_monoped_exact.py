@@ -298,6 +298,38 @@ def test_plan_monoped_writes_plan_trajectory_and_replay(monkeypatch, tmp_path, c
     assert traj.q.shape[0] == saved.t.size
 
 
+def test_a_failed_re_solve_whose_node_times_run_back_is_written_as_failed(
+        monkeypatch, tmp_path, capsys):
+    """An NLP stopped infeasible can leave a switch past its neighbouring nodes (measured:
+    the reduced hop's 8-node level, node times dropping from 0.5 to 0.4957 s). Its
+    iterate has no trajectory, but the plan ends with its failed status, its summary and
+    its nodes written, not with an error that loses them."""
+    from tfcontact.scenes import plans
+    from tfcontact.scenes.pipeline import Stage, resolved_outcome
+
+    checked = types.SimpleNamespace(passed=False, summary=lambda: "FAILED",
+                                    local_defects=(np.inf,) * 10)
+    iterate = stand_in_plan("Infeasible_Problem_Detected", 737.0, verification=checked)
+    iterate = dataclasses.replace(iterate, t=np.array([0.0, 0.25, 0.5, 0.4957, 1.0]))
+    setup = monoped_exact.full_setup()
+    failed = ResolveChain(iterate, setup.problem, (), 0.0, 1.0, message="infeasible")
+
+    class Failed(Stage):
+        name = "failed"
+
+        def run(self, given):
+            return resolved_outcome(failed, setup, None)
+
+    monkeypatch.setitem(plans.PLANS, "monoped", Plan("monoped", "failed", ("full",),
+                                                     (Failed(),)))
+    assert main(["plan", "monoped", "--out", str(tmp_path)]) == 1
+    assert "plan monoped (full): nlp_failed" in capsys.readouterr().out
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "nlp_failed" and not summary["success"]
+    assert "node times decrease" in summary["summary"]
+    assert (tmp_path / "plan.npz").is_file() and not (tmp_path / "trajectory.npz").exists()
+
+
 @pytest.mark.slow
 def test_reduced_monoped_exact_plan_hops_over_the_hole(tmp_path):
     """`tfcontact plan monoped --task reduced`: the time-freezing homotopy from the

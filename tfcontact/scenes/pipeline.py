@@ -309,6 +309,13 @@ def resolved_outcome(chain: ResolveChain, setup: PlanSetup, found: PlanOutcome |
         return PlanOutcome(None, setup.robot, chain.status, False,
                            discovery + chain.summary(), setup=setup, chain=chain)
     plan, problem = chain.plan, chain.problem
+    if np.any(np.diff(plan.t) < 0):
+        # a failed NLP's iterate can move a switch past its neighbouring nodes: it has no
+        # trajectory (its samples would run backwards in time); its nodes are still saved
+        return PlanOutcome(None, setup.robot, chain.status, False,
+                           f"{discovery}{chain.summary()}\nno trajectory written: the last "
+                           "re-solve's node times decrease (an iterate, not a plan)",
+                           setup=setup, chain=chain)
     task = _polished_task(plan, problem)
     status = chain.status if not chain.success else \
         ("converged" if task.passed else task.status)
