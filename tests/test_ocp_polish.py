@@ -514,3 +514,17 @@ def test_terminal_rows_the_final_stance_holds_are_left_to_it():
     assert polish.terminal_rows_not_held(height, dyn.held[polish.STICK], end).shape == (0, 1)
     kept = polish.terminal_rows_not_held(state, dyn.held["slip+"], np.array([0.7, 0, 1.0, 0]))
     np.testing.assert_allclose(kept.T @ kept, np.diag([1.0, 0, 1, 0]), atol=1e-12)
+
+
+def test_the_touchdown_rate_floor_leaves_grazing_landings_out():
+    """`touchdown_rate` is the floor of the impulse flow's normal rate r_n: a landing
+    with r_n = 0.03 [1/kg] passes the default floor (1e-3) and not 0.05; it must be
+    positive."""
+    mu, sign = 0.8, 1.0
+    w = np.array([[0.03 + mu * 0.5, 0.5], [0.5, 2.0]])  # r_n = W_nn - mu W_nt = 0.03
+    rows = polish.touchdown_rows(w, -1.0, 0.1, sign, mu)
+    assert rows[1][0] == pytest.approx(0.03) and rows[1][0] >= rows[1][1]
+    rows = polish.touchdown_rows(w, -1.0, 0.1, sign, mu, rate=0.05)
+    assert rows[1][0] < rows[1][1]
+    with pytest.raises(InvalidInput, match="touchdown_rate"):
+        polish.PolishOptions(touchdown_rate=0.0)

@@ -117,6 +117,14 @@ class PolishOptions:
             pivoting: both are positive definite) instead of CasADi's symbolic QR; the
             monoped's two-step RK4 shooting Hessian takes 147k instead of 306k
             instructions in stick. Off by default (another IPOPT path).
+        painleve_margin: at every contact node W_nn -+ mu W_nt >= this [1/kg] (0: no
+            rows): the contact stays away from the Painleve region.
+        touchdown_rate: at each touchdown the impulse flow's normal rate
+            r_n = W_nn - s mu W_nt >= this [1/kg] (`touchdown_rows`). Near r_n = 0 a landing
+            of vanishing normal velocity stops any sliding, and an optimiser drawn there
+            lands grazing: the monoped over terrain holes landed at v_n = -0.012 m/s with
+            v_t = 4.4 m/s and r_n at 1e-3, and the exact replay missed the ground
+            (benchmarks/monoped_bench.md). TF-9's verified landings have r_n 0.08-0.09.
         cone_margins: the continuation of the stick cone |lambda_t| <= c mu lambda_n, each
             NLP warm started from the last. With a slip phase only c = 1: the stick force
             reaches the cone's edge where the slip starts.
@@ -147,6 +155,7 @@ class PolishOptions:
     ldl: bool = False
     baumgarte: float = 20.0
     painleve_margin: float = 0.05
+    touchdown_rate: float = 1e-3
     cone_margins: tuple[float, ...] = (1.0,)
     flight_gap: float = 5e-3
     contact_gap: float = 1e-3
@@ -197,7 +206,7 @@ class PolishOptions:
             raise InvalidInput(f"`switch_margin` must lie in (0, 0.5), got "
                                f"{self.switch_margin}")
         for name in ("tol", "end_state_tolerance", "gap_tolerance", "cone_tolerance",
-                     "terminal_tolerance"):
+                     "terminal_tolerance", "touchdown_rate"):
             if not getattr(self, name) > 0:
                 raise InvalidInput(f"`{name}` must be positive, got {getattr(self, name)}")
 
@@ -476,7 +485,8 @@ def terminal_rows_not_held(terminal: ca.Function, held: ca.Function,
     return basis[:, rank:].T
 
 
-def touchdown_rows(w, v_n, v_t, sign: float, mu, cone_margin=1.0) -> list[tuple]:
+def touchdown_rows(w, v_n, v_t, sign: float, mu, cone_margin=1.0,
+                   rate: float = 1e-3) -> list[tuple]:
     """Pairs (a, b), each meaning a >= b, under which an inelastic planar impact with
     Delassus matrix w and contact velocities (v_n < 0, v_t) ends in stick, by the
     reference's impulse flow (`tfcontact.verify.reference`): slip at
@@ -484,12 +494,12 @@ def touchdown_rows(w, v_n, v_t, sign: float, mu, cone_margin=1.0) -> list[tuple]
     stick. With the rates r_n = W_nn - s mu W_nt > 0 and r_t = s (s mu W_tt - W_tn) > 0 of
     v_n and |v_t| per unit lambda_n: |v_t| r_n <= -v_n r_t, and |W_tn| <= mu W_tt for the
     stick that follows. Inside the Painleve region (r_n <= 0) the flow also ends in stick
-    (the slip always stops there); r_n >= 1e-3 leaves those landings out. Numbers or CasADi
-    expressions. (Written as the measured runs wrote them: an algebraically equal rewrite
-    moved IPOPT's path to the iteration cap.)"""
+    (the slip always stops there); r_n >= `rate` (and r_t >= 1e-3) leaves those landings
+    out. Numbers or CasADi expressions. (Written as the measured runs wrote them: an
+    algebraically equal rewrite moved IPOPT's path to the iteration cap.)"""
     rate_n = w[0, 0] - sign * mu * w[0, 1]
     rate_t = sign * (sign * mu * w[1, 1] - w[1, 0])
-    return [(sign * v_t, 0), (rate_n, 1e-3), (rate_t, 1e-3),
+    return [(sign * v_t, 0), (rate_n, rate), (rate_t, 1e-3),
             (-v_n * rate_t, sign * v_t * rate_n),
             (cone_margin * mu * w[1, 1] - w[1, 0], 0), (cone_margin * mu * w[1, 1] + w[1, 0], 0)]
 
@@ -763,7 +773,8 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
                 # ... and an impact whose impulse flow ends in stick
                 vel = dyn.velocity(x)
                 for big, small in touchdown_rows(dyn.delassus(x), vel[0], vel[1],
-                                                 touchdown_signs[jb], dyn.mu, margin):
+                                                 touchdown_signs[jb], dyn.mu, margin,
+                                                 options.touchdown_rate):
                     opti.subject_to(big >= small)
                 post, impulse = dyn.impact(x)  # the post-impact state: J v+ = 0
                 impulses.append(impulse)
