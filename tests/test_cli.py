@@ -25,13 +25,15 @@ def test_monoped_plan_is_tf9_from_the_urdf():
     from tfcontact.scenes.monoped_exact import EXACT_TASK
 
     plan = PLANS["monoped"]
-    assert plan.tasks == ("full", "reduced", "hand-set")
+    assert plan.tasks == ("full", "reduced", "terrain", "hand-set")
     assert plan.build(None).problem.horizon == 1.0  # the discovery is the reduced task's
     assert [s.name for s in plan.stages_for("full")] == [
         "discover the reduced task's hop", "exact re-solve of the reduced hop",
         "exact re-solve of TF-9's task"]
     assert plan.stages_for("hand-set") == plan.stages_for("full")
     assert plan.stages_for("reduced") == plan.stages[:2]
+    assert [s.name for s in plan.stages_for("terrain")][2] == (
+        "exact re-solve of TF-9's task, holes as terrain")
     mp = monoped_problem(EXACT_TASK)
     assert mp.robot.nq == 4 and mp.problem.n_intervals == 20 and mp.problem.horizon == 2.5
     scene = mp.scene()

@@ -250,6 +250,15 @@ def test_plan_monoped_searches_its_schedule_unless_asked_for_the_hand_set_one():
     plan = monoped_exact.STAGES
     assert plan[2].start.schedules == {"full": "search", "hand-set": HAND_SET_SCHEDULE}
     assert plan[2].tasks == ("full", "hand-set") and plan[1].tasks is None
+    # --task terrain: the same search, then the terrain holes' Radau levels
+    assert plan[3].start.schedules == {"terrain": "search"} and plan[3].tasks == ("terrain",)
+    setup = monoped_exact.terrain_setup()
+    levels = monoped_exact.terrain_levels(setup)
+    full = monoped_exact.full_levels(monoped_exact.full_setup())
+    assert [level.name for level in levels[:len(full)]] == [level.name for level in full]
+    assert [level.problem for level in levels[len(full):]] == [setup.problem] * 2
+    assert levels[len(full)].options.touchdown_rate == monoped_exact.TERRAIN_TOUCHDOWN_RATE
+    assert setup.scene["terrain"]["primitives"][1]["kind"] == "hole"
 
 
 def test_plan_monoped_writes_plan_trajectory_and_replay(monkeypatch, tmp_path, capsys):

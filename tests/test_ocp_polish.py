@@ -517,14 +517,17 @@ def test_terminal_rows_the_final_stance_holds_are_left_to_it():
 
 
 def test_the_touchdown_rate_floor_leaves_grazing_landings_out():
-    """`touchdown_rate` is the floor of the impulse flow's normal rate r_n: a landing
-    with r_n = 0.03 [1/kg] passes the default floor (1e-3) and not 0.05; it must be
-    positive."""
+    """`touchdown_rate` bounds the impulse flow's normal rate r_n below by a fraction of
+    W_nn: a landing with r_n = 0.03 [1/kg] and W_nn = 0.43 (a ratio of 0.07) passes 0.05
+    and not 0.1; without it (0, the default) no row is added."""
     mu, sign = 0.8, 1.0
     w = np.array([[0.03 + mu * 0.5, 0.5], [0.5, 2.0]])  # r_n = W_nn - mu W_nt = 0.03
-    rows = polish.touchdown_rows(w, -1.0, 0.1, sign, mu)
-    assert rows[1][0] == pytest.approx(0.03) and rows[1][0] >= rows[1][1]
-    rows = polish.touchdown_rows(w, -1.0, 0.1, sign, mu, rate=0.05)
-    assert rows[1][0] < rows[1][1]
-    with pytest.raises(InvalidInput, match="touchdown_rate"):
-        polish.PolishOptions(touchdown_rate=0.0)
+    plain = polish.touchdown_rows(w, -1.0, 0.1, sign, mu)
+    assert len(plain) == 6 and plain[1][0] == pytest.approx(0.03)
+    passes = polish.touchdown_rows(w, -1.0, 0.1, sign, mu, rate=0.05)
+    assert len(passes) == 7 and passes[-1][0] >= passes[-1][1]
+    fails = polish.touchdown_rows(w, -1.0, 0.1, sign, mu, rate=0.1)
+    assert fails[-1][0] < fails[-1][1]
+    for bad in (-0.1, 1.0):
+        with pytest.raises(InvalidInput, match="touchdown_rate"):
+            polish.PolishOptions(touchdown_rate=bad)

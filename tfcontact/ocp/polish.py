@@ -120,11 +120,12 @@ class PolishOptions:
         painleve_margin: at every contact node W_nn -+ mu W_nt >= this [1/kg] (0: no
             rows): the contact stays away from the Painleve region.
         touchdown_rate: at each touchdown the impulse flow's normal rate
-            r_n = W_nn - s mu W_nt >= this [1/kg] (`touchdown_rows`). Near r_n = 0 a landing
-            of vanishing normal velocity stops any sliding, and an optimiser drawn there
-            lands grazing: the monoped over terrain holes landed at v_n = -0.012 m/s with
-            v_t = 4.4 m/s and r_n at 1e-3, and the exact replay missed the ground
-            (benchmarks/monoped_bench.md). TF-9's verified landings have r_n 0.08-0.09.
+            r_n = W_nn - s mu W_nt >= this fraction of W_nn (`touchdown_rows`; 0: only
+            r_n >= 1e-3 [1/kg]). Near r_n = 0 a landing of vanishing normal velocity stops
+            any sliding, and an optimiser drawn there lands grazing: the monoped over
+            terrain holes landed at v_n = -0.012 m/s with v_t = 4.4 m/s and r_n at 1e-3,
+            and the exact replay missed the ground (benchmarks/monoped_bench.md). TF-9's
+            verified landings have r_n / W_nn = 0.04-0.05.
         cone_margins: the continuation of the stick cone |lambda_t| <= c mu lambda_n, each
             NLP warm started from the last. With a slip phase only c = 1: the stick force
             reaches the cone's edge where the slip starts.
@@ -155,7 +156,7 @@ class PolishOptions:
     ldl: bool = False
     baumgarte: float = 20.0
     painleve_margin: float = 0.05
-    touchdown_rate: float = 1e-3
+    touchdown_rate: float = 0.0
     cone_margins: tuple[float, ...] = (1.0,)
     flight_gap: float = 5e-3
     contact_gap: float = 1e-3
@@ -206,9 +207,12 @@ class PolishOptions:
             raise InvalidInput(f"`switch_margin` must lie in (0, 0.5), got "
                                f"{self.switch_margin}")
         for name in ("tol", "end_state_tolerance", "gap_tolerance", "cone_tolerance",
-                     "terminal_tolerance", "touchdown_rate"):
+                     "terminal_tolerance"):
             if not getattr(self, name) > 0:
                 raise InvalidInput(f"`{name}` must be positive, got {getattr(self, name)}")
+        if not 0 <= self.touchdown_rate < 1:
+            raise InvalidInput(f"`touchdown_rate` must lie in [0, 1) (a fraction of W_nn), "
+                               f"got {self.touchdown_rate}")
 
     def substeps_per_interval(self, n_intervals: int) -> tuple[int, ...]:
         """`substeps` for each of `n_intervals` control intervals."""
@@ -486,7 +490,7 @@ def terminal_rows_not_held(terminal: ca.Function, held: ca.Function,
 
 
 def touchdown_rows(w, v_n, v_t, sign: float, mu, cone_margin=1.0,
-                   rate: float = 1e-3) -> list[tuple]:
+                   rate: float = 0.0) -> list[tuple]:
     """Pairs (a, b), each meaning a >= b, under which an inelastic planar impact with
     Delassus matrix w and contact velocities (v_n < 0, v_t) ends in stick, by the
     reference's impulse flow (`tfcontact.verify.reference`): slip at
@@ -494,14 +498,16 @@ def touchdown_rows(w, v_n, v_t, sign: float, mu, cone_margin=1.0,
     stick. With the rates r_n = W_nn - s mu W_nt > 0 and r_t = s (s mu W_tt - W_tn) > 0 of
     v_n and |v_t| per unit lambda_n: |v_t| r_n <= -v_n r_t, and |W_tn| <= mu W_tt for the
     stick that follows. Inside the Painleve region (r_n <= 0) the flow also ends in stick
-    (the slip always stops there); r_n >= `rate` (and r_t >= 1e-3) leaves those landings
-    out. Numbers or CasADi expressions. (Written as the measured runs wrote them: an
+    (the slip always stops there); r_n, r_t >= 1e-3 leave those landings out, and with
+    `rate` > 0 a last row r_n >= rate W_nn keeps the landing that far from them. Numbers or
+    CasADi expressions. (Written as the measured runs wrote them: an
     algebraically equal rewrite moved IPOPT's path to the iteration cap.)"""
     rate_n = w[0, 0] - sign * mu * w[0, 1]
     rate_t = sign * (sign * mu * w[1, 1] - w[1, 0])
-    return [(sign * v_t, 0), (rate_n, rate), (rate_t, 1e-3),
+    return [(sign * v_t, 0), (rate_n, 1e-3), (rate_t, 1e-3),
             (-v_n * rate_t, sign * v_t * rate_n),
-            (cone_margin * mu * w[1, 1] - w[1, 0], 0), (cone_margin * mu * w[1, 1] + w[1, 0], 0)]
+            (cone_margin * mu * w[1, 1] - w[1, 0], 0), (cone_margin * mu * w[1, 1] + w[1, 0], 0),
+            *([(rate_n, rate * w[0, 0])] if rate > 0 else [])]
 
 
 def guess_from_result(result: ContactResult) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

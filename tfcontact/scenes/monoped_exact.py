@@ -110,6 +110,17 @@ class Schedule:
         return f"lift-offs {', '.join(f'{t:g}' for t in self.lift_offs)} s"
 
 
+TERRAIN_TASK = dataclasses.replace(EXACT_TASK, hole_form="terrain")
+"""`EXACT_TASK` with its holes as the terrain's (`tfcontact.robot.Hole`, bottomless, rims
+rounded 1 cm): no support over them, no constraint on the foot's path (it may dip into a
+hole), the replay and the sidecar draw them (`tfcontact plan monoped --task terrain`)."""
+TERRAIN_TOUCHDOWN_RATE = 0.025
+"""`PolishOptions.touchdown_rate` of the terrain task's Radau levels (r_n >= 0.025 W_nn,
+about 0.047 1/kg here): without it the re-solve landed grazing (v_n = -0.012 m/s at
+v_t = 4.4 m/s, r_n at 1e-3) and the exact replay missed the ground; TF-9's plan lands
+with r_n / W_nn = 0.04-0.05."""
+
+
 HAND_SET_SCHEDULE = Schedule(lift_offs=(0.5, 1.25, 2.0), flight_time=0.26)
 """The schedule of the earlier verified plan (benchmarks/monoped_exact_plan.npz,
 `tfcontact plan monoped --task hand-set`): set by hand from the reduced hop (time scaled
@@ -240,26 +251,32 @@ def search_schedule(hop: PolishedPlan, schedules: tuple[Schedule, ...], problem:
     return best, tuple(trials)
 
 
-def radau_options(substeps: int | tuple[int, ...] = RADAU_ELEMENTS) -> PolishOptions:
+def radau_options(substeps: int | tuple[int, ...] = RADAU_ELEMENTS,
+                  **settings) -> PolishOptions:
     """TF-9's scheme (Radau IIA, order 5) on `substeps` elements per control interval,
-    the stick forces kept 2 % inside the friction cone (`RADAU_CONE_MARGIN`)."""
+    the stick forces kept 2 % inside the friction cone (`RADAU_CONE_MARGIN`); `settings`:
+    other `PolishOptions` fields."""
     # element derivatives as in the RK4 levels (until the warm starts at impacts and the
     # terminal rows were mended, the refined level from the saved RK4 plan ended
     # nlp_failed with them: monoped_bench.md)
-    return resolve_options(substeps=substeps, integrator="radau", painleve_margin=0.0,
-                           cone_margins=(RADAU_CONE_MARGIN,))
+    return resolve_options(**{"substeps": substeps, "integrator": "radau",
+                              "painleve_margin": 0.0, "cone_margins": (RADAU_CONE_MARGIN,),
+                              **settings})
 
 
 # ---- saved plans -------------------------------------------------------------------------
 
-def radau_levels(problem: ContactProblem) -> list[ResolveLevel]:
+def radau_levels(problem: ContactProblem, holes: str = "TF-9's ellipses",
+                 **settings) -> list[ResolveLevel]:
     """The chain's last two re-solves: TF-9's Radau IIA order 5 on `RADAU_ELEMENTS`
-    elements per interval, then on that mesh refined where its local defects are large."""
-    return [ResolveLevel(f"full task, TF-9's ellipses, Radau IIA order 5, {RADAU_ELEMENTS} "
-                         "elements per interval", problem, radau_options()),
-            ResolveLevel("full task, TF-9's ellipses, Radau IIA order 5, mesh refined by the "
+    elements per interval, then on that mesh refined where its local defects are large.
+    `holes` names the problem's holes; `settings`: other `PolishOptions` fields."""
+    options = radau_options(**settings)
+    return [ResolveLevel(f"full task, {holes}, Radau IIA order 5, {RADAU_ELEMENTS} "
+                         "elements per interval", problem, options),
+            ResolveLevel(f"full task, {holes}, Radau IIA order 5, mesh refined by the "
                          "local defects", problem,
-                         refine_by_defects(radau_options(), RADAU_ELEMENTS))]
+                         refine_by_defects(options, RADAU_ELEMENTS))]
 
 
 # ---- the plan's stages --------------------------------------------------------------------
@@ -307,6 +324,19 @@ def full_levels(setup: PlanSetup) -> list[ResolveLevel]:
             ResolveLevel("full task, TF-9's ellipses, 16 nodes x 2 RK4 steps", setup.problem,
                          rk4[16]),
             *radau_levels(setup.problem)]
+
+
+def terrain_setup(_: str | None = None) -> PlanSetup:
+    """TF-9's task with its holes as the terrain's (`TERRAIN_TASK`), re-solved exactly."""
+    return _setup(TERRAIN_TASK)
+
+
+def terrain_levels(setup: PlanSetup) -> list[ResolveLevel]:
+    """The terrain task's re-solves: `full_levels` (the bump holes and TF-9's ellipses
+    lead the re-solves to hops over the holes), then `radau_levels` on the terrain's
+    holes with `TERRAIN_TOUCHDOWN_RATE`."""
+    return [*full_levels(full_setup()),
+            *radau_levels(setup.problem, "terrain holes", touchdown_rate=TERRAIN_TOUCHDOWN_RATE)]
 
 
 @dataclass(frozen=True)
@@ -378,6 +408,9 @@ STAGES = (
                                                       "hand-set": HAND_SET_SCHEDULE}),
                  setup=full_setup, name="exact re-solve of TF-9's task",
                  tasks=("full", "hand-set")),
+    ExactResolve(levels=terrain_levels, start=TiledHops({"terrain": "search"}),
+                 setup=terrain_setup, name="exact re-solve of TF-9's task, holes as terrain",
+                 tasks=("terrain",)),
 )
 """The monoped's plan (`tfcontact plan monoped`): the module docstring's chain as stages."""
 
