@@ -30,6 +30,11 @@ converges and finds one hop: stick, flight, stick. The stages:
    (not solved again when none does: measured on the full task, whose 12-element plan
    passes).
    TF-9's own 3 elements per interval are too coarse for this motion (`RADAU_ELEMENTS`).
+4. `--task terrain` runs stage 3's search and levels, then `radau_levels` once more on
+   `TERRAIN_TASK`, whose holes are the terrain's: the bump and ellipse levels lead the
+   re-solves over the holes (the terrain's holes alone remove support but point nowhere:
+   the discovery over them finds no hop, benchmarks/monoped_settings.md), the last
+   levels let the foot pass inside the ellipses.
 
 How a chain goes on past a level stopped at IPOPT's iteration cap, and what decides at its
 end, is `tfcontact.ocp.chain`'s (the same for every robot).
