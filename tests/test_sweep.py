@@ -42,7 +42,8 @@ from tfcontact.sweep import (
     ({"plan": "hopper", "starts": 2.5}, r"`starts` must be a positive integer, got 2.5"),
     ({"plan": "walker"}, r"unknown plan `walker`; sweepable plans: hopper, hopper-exact, particle"),
     ({"plan": "monoped"}, r"plan `monoped` has stages that solve problems of their own "
-                          r"\(exact re-solve of TF-9's task\), not the perturbed start's"),
+                          r"\(exact re-solve of TF-9's task, exact re-solve of TF-9's task, "
+                          r"holes as terrain\), not the perturbed start's"),
     ({"plan": "hopper", "task": "sprint"},
      r"plan `hopper` has no task `sprint`; tasks: short, long, bench"),
     ({"plan": "hopper", "seed": -1}, r"`seed` must be a non-negative integer, got -1"),
