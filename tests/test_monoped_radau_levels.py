@@ -75,5 +75,5 @@ def test_the_holes_as_terrain_give_a_verified_plan_no_dearer_than_tf9s_ellipses(
     for i in landings:
         w = np.asarray(dyn.delassus(plan.x[i - 1]))
         v_t = float(np.asarray(dyn.velocity(plan.x[i - 1]))[1, 0])
-        rate_n = w[0, 0] - np.sign(v_t) * 0.8 * w[0, 1]
+        rate_n = w[0, 0] - np.sign(v_t) * dyn.mu * w[0, 1]
         assert rate_n >= monoped_exact.TERRAIN_TOUCHDOWN_RATE * w[0, 0] - 1e-6

@@ -24,7 +24,7 @@ import numpy as np
 from tfcontact.errors import InvalidInput
 from tfcontact.native import peak_memory, reset_peak_memory, return_memory
 from tfcontact.ocp.contact import ContactProblem, ContactResult
-from tfcontact.ocp.nodes import CAPPED, NlpTiming
+from tfcontact.ocp.nodes import CAPPED, NlpTiming, bound_violation, system_states
 from tfcontact.ocp.polish import (
     Phase,
     PolishedPlan,
@@ -142,17 +142,11 @@ def path_violation(problem: ContactProblem, plan: PolishedPlan) -> float:
     if path is None or path.expression.numel() == 0:
         return 0.0
     system = problem.system
-    n_q = system.cls.n_q
-    y = np.zeros((len(plan.t), system.y.numel()))
-    y[:, system.q_index] = plan.x[:, :n_q]
-    y[:, system.v_index] = plan.x[:, n_q:]
-    y[:, system.clock_index] = plan.t
+    y = system_states(system, plan.x, plan.t)
     u = node_samples(plan, system.cls)["u"]
     values = np.asarray(ca.Function("path", [system.y, system.u], [path.expression])
                         .map(len(plan.t))(y.T, u.T)).T
-    lower = np.broadcast_to(np.asarray(path.lower, dtype=float), values.shape[1:])
-    upper = np.broadcast_to(np.asarray(path.upper, dtype=float), values.shape[1:])
-    return float(max(0.0, np.max(lower - values), np.max(values - upper)))
+    return bound_violation(values, path.lower, path.upper)
 
 
 def resolve_chain(levels: Sequence[ResolveLevel], phases: tuple[Phase, ...],

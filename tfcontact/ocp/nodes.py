@@ -101,6 +101,27 @@ def bounded_rows(name: str, inputs: list[ca.SX], rows: list[tuple]
             np.concatenate(upper) if upper else np.zeros(0))
 
 
+def system_states(system, x: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The time-freezing states y (n, n_y) of nodes x = (q, v) (n, 2 n_q) at times t (n,)
+    (the other entries zero): what the problem's path and terminal rows take."""
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    n_q = system.cls.n_q
+    y = np.zeros((len(x), system.y.numel()))
+    y[:, system.q_index] = x[:, :n_q]
+    y[:, system.v_index] = x[:, n_q:]
+    y[:, system.clock_index] = t
+    return y
+
+
+def bound_violation(values: np.ndarray, lower, upper) -> float:
+    """The largest violation of lower <= values <= upper (bounds broadcast along the last
+    axis); 0 where every value is within them."""
+    values = np.atleast_2d(np.asarray(values, dtype=float))
+    lower = np.broadcast_to(np.asarray(lower, dtype=float), values.shape[1:])
+    upper = np.broadcast_to(np.asarray(upper, dtype=float), values.shape[1:])
+    return float(max(0.0, np.max(lower - values), np.max(values - upper)))
+
+
 def interpolate(t: np.ndarray, x: np.ndarray, at: float,
                 left_limit: bool = False) -> np.ndarray:
     """The samples x (rows at times t) linearly interpolated at `at` (clipped to [t_0, t_n]).

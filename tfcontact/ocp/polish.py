@@ -52,6 +52,7 @@ from tfcontact.ocp.nodes import (
     NlpTiming,
     NodeFunctions,
     RepeatedRows,
+    bound_violation,
     bounded_rows,
     collocation_function,
     collocation_residuals,
@@ -60,6 +61,7 @@ from tfcontact.ocp.nodes import (
     shooting_function,
     solve_timed,
     spd_solve,
+    system_states,
 )
 from tfcontact.verify import (
     LOCAL_DEFECT_IMPACT_WINDOW,
@@ -500,8 +502,8 @@ def touchdown_rows(w, v_n, v_t, sign: float, mu, cone_margin=1.0,
     stick that follows. Inside the Painleve region (r_n <= 0) the flow also ends in stick
     (the slip always stops there); r_n, r_t >= 1e-3 leave those landings out, and with
     `rate` > 0 a last row r_n >= rate W_nn keeps the landing that far from them. Numbers or
-    CasADi expressions. (Written as the measured runs wrote them: an
-    algebraically equal rewrite moved IPOPT's path to the iteration cap.)"""
+    CasADi expressions. (Written as the measured runs wrote them: an algebraically equal
+    rewrite moved IPOPT's path to the iteration cap.)"""
     rate_n = w[0, 0] - sign * mu * w[0, 1]
     rate_t = sign * (sign * mu * w[1, 1] - w[1, 0])
     return [(sign * v_t, 0), (rate_n, 1e-3), (rate_t, 1e-3),
@@ -998,15 +1000,9 @@ def terminal_violation(problem: ContactProblem, x_end: np.ndarray) -> float:
     if terminal is None or terminal.expression.numel() == 0:
         return 0.0
     system = problem.system
-    n_q = system.cls.n_q
-    y = np.zeros(system.y.numel())
-    y[system.q_index] = x_end[:n_q]
-    y[system.v_index] = x_end[n_q:]
-    y[system.clock_index] = problem.horizon
-    values = np.asarray(ca.Function("terminal", [system.y], [terminal.expression])(y)).ravel()
-    lower = np.broadcast_to(np.asarray(terminal.lower, dtype=float), values.shape)
-    upper = np.broadcast_to(np.asarray(terminal.upper, dtype=float), values.shape)
-    return float(max(0.0, np.max(lower - values), np.max(values - upper)))
+    y = system_states(system, x_end, np.array([problem.horizon]))
+    values = np.asarray(ca.Function("terminal", [system.y], [terminal.expression])(y[0]))
+    return bound_violation(values.reshape(1, -1), terminal.lower, terminal.upper)
 
 
 def node_samples(plan: PolishedPlan, cls, baumgarte: float = PolishOptions.baumgarte
