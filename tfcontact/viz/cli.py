@@ -51,13 +51,16 @@ def cli_replay(args: argparse.Namespace) -> int:
     result = replay(traj, live=True, **options)
     if args.open:
         webbrowser.open(result.url)
-    print("the replay plays in the browser tab ('Animations' panel: play, reset, time);"
-          " press Ctrl-C to stop the viewer")
+
     def stop(signum, frame):  # SIGTERM too: stop the server (it runs in its own session)
         raise KeyboardInterrupt
 
+    # The handler goes in before the line that tells the user (or a test) the viewer runs:
+    # a SIGTERM sent on reading that line must not find Python's default handler.
     previous = signal.signal(signal.SIGTERM, stop)
     try:
+        print("the replay plays in the browser tab ('Animations' panel: play, reset, time);"
+              " press Ctrl-C to stop the viewer", flush=True)
         while True:
             time.sleep(3600)
     except KeyboardInterrupt:
