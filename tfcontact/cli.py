@@ -116,8 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     plan.add_argument("--force", action="store_true",
                       help="replace the output folder if it already holds files (a plan)")
     plan.add_argument("--task", default=None,
-                      help="a variant of the plan (hopper: short, long; "
-                           "monoped: full, reduced, hand-set)")
+                      help="a variant of the plan (its summary in --list names them)")
     plan.add_argument("--attempts", type=_positive(int, "--attempts"), default=None,
                       help="solve a failed plan again from a perturbed guess, up to this "
                            "many solves in all (default: the plan's; hopper: 3 for the short "

@@ -84,7 +84,7 @@ PLANS: dict[str, Plan] = {
         name="monoped",
         summary="Capler monoped (robots/monoped.urdf), TF-9: hop over three holes to x = 3 "
                 "(about 5 min; --task reduced: one hole, to x = 1, about 1 min; --task "
-                "terrain: the holes as the terrain's, about 6 min; --task hand-set: the "
+                "terrain: the holes as the terrain's, about 7.5 min; --task hand-set: the "
                 "hops on a hand-set schedule instead of a searched one): time-freezing "
                 "homotopy on the reduced task, then exact re-solves along its contact "
                 "sequence (tfcontact.scenes.monoped_exact)",
