@@ -543,6 +543,35 @@ def test_check_script_with_plain_pinocchio(tmp_path):
     assert run()[0] == 2
 
 
+def test_cli_live_viewer_takes_a_sigterm_sent_on_its_ready_line():
+    """A SIGTERM sent the moment the viewer says it runs (as the slow test below, or a
+    supervisor, does on reading that line) stops it cleanly: exit 0, server closed. Made
+    deterministic by sending the signal from inside that print (the replay faked); before
+    the handler went in first, this process died of the signal (exit -15)."""
+    import subprocess
+    import sys
+
+    code = """
+import argparse, os, signal, sys, types
+import tfcontact.viz.cli as viz_cli
+closed = []
+viz_cli.load_trajectory = lambda path: None
+viz_cli.replay = lambda traj, **kw: types.SimpleNamespace(
+    url="http://127.0.0.1:1/static/", close=lambda: closed.append(True))
+def ready(*args, **kwargs):
+    if any("Ctrl-C" in str(a) for a in args):
+        os.kill(os.getpid(), signal.SIGTERM)
+viz_cli.print = ready
+code = viz_cli.cli_replay(argparse.Namespace(trajectory="x.npz", html=None, open=False))
+sys.stdout.write(f"closed={closed} code={code}")
+sys.exit(code)
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0, (proc.returncode, proc.stderr)
+    assert "closed=[True] code=0" in proc.stdout
+
+
 @pytest.mark.slow
 def test_cli_live_viewer_stops_its_server_on_sigterm(tmp_path):
     """`tfcontact replay X` without --html serves until stopped, then ends meshcat's server."""
