@@ -224,6 +224,79 @@ def test_bad_schedules_are_refused():
         StanceOptions(inverse_dynamics=None)
 
 
+def spatial_mass() -> ComplementarityLagrangianSystem:
+    """A point mass on the ground with 3-D friction: q = (x, y, z), u = force on it."""
+    q, v, u = ca.SX.sym("q", 3), ca.SX.sym("v", 3), ca.SX.sym("u", 3)
+    m = MASSES[0]
+    contact = Contact(gap=q[2], tangents=ca.jacobian(q[:2], q).T, mu=MU, name="foot")
+    return ComplementarityLagrangianSystem(
+        q=q, v=v, u=u, mass_matrix=m * ca.DM.eye(3), forces=u - ca.DM([0.0, 0.0, m * G]),
+        contacts=(contact,))
+
+
+def pushed_spatial_mass(options: StanceOptions, u_lower, u_upper, target):
+    """The mass standing throughout, its force driven towards `target` (the cost
+    ||u - target||^2): the stance's rows decide how far it gets."""
+    tf = time_freeze(spatial_mass())
+    p = ContactProblem(system=tf, q0=[0.0] * 3, v0=[0.0] * 3, horizon=0.2, n_intervals=2,
+                       u_lower=u_lower, u_upper=u_upper,
+                       running_cost=ca.sumsqr(tf.u - ca.DM(target)))
+    guess = (np.array([0.0, 0.2]), np.zeros((2, 6)), np.zeros((2, 3)))
+    plan = resolve_stances(p, (Stance((0,), 0.0, 0.2),), options, guess=guess, verbose=False)
+    assert plan.solved, plan.ipopt_status
+    np.testing.assert_allclose(plan.x[:, :3], 0.0, atol=1e-7)  # it stuck
+    return plan
+
+
+@pytest.mark.parametrize("facets", [None, 4, 8])
+def test_a_3d_stick_force_ends_at_the_circle_or_the_inscribed_pyramid(facets):
+    """Pushed along x as hard as it can while it sticks: the push reaches c mu m g on the
+    circular cone, and c mu cos(pi / n) m g on the inscribed pyramid of n facets (a
+    facet's normal along x); pushed diagonally, a 4-facet pyramid's vertex direction,
+    c mu m g (|u| along the diagonal) again."""
+    margin, weight = 0.95, MASSES[0] * G
+    inner = 1.0 if facets is None else np.cos(np.pi / facets)
+    options = StanceOptions(cone_margin=margin, cone_facets=facets, tol=1e-10)
+    plan = pushed_spatial_mass(options, [-20.0, 0.0, 0.0], [20.0, 0.0, 0.0],
+                               [20.0, 0.0, 0.0])
+    np.testing.assert_allclose(plan.u[:, 0], margin * MU * inner * weight, rtol=1e-6)
+    assert plan.verification.passed, plan.verification.summary()
+    if facets == 4:
+        plan = pushed_spatial_mass(options, [-20.0, -20.0, 0.0], [20.0, 20.0, 0.0],
+                                   [20.0, 20.0, 0.0])
+        np.testing.assert_allclose(np.hypot(plan.u[:, 0], plan.u[:, 1]),
+                                   margin * MU * weight, rtol=1e-6)
+
+
+def test_a_stance_keeps_its_minimal_normal_force():
+    """Pulled up as hard as it can while it stands: lambda_n = m g - u_z reaches
+    `min_normal_force`. Without it, 0: the foot on the floor of its cone (here IPOPT's
+    round-off, lambda_n about -1e-8 N, failed the verification's cone check)."""
+    weight = MASSES[0] * G
+    for floor in (0.0, 2.0):
+        plan = pushed_spatial_mass(StanceOptions(min_normal_force=floor, tol=1e-10),
+                                   [0.0, 0.0, 0.0], [0.0, 0.0, 40.0], [0.0, 0.0, 40.0])
+        np.testing.assert_allclose(plan.u[:, 2], weight - floor, rtol=1e-6, atol=1e-6)
+        if floor > 0:
+            assert plan.verification.passed, plan.verification.summary()
+
+
+def test_cone_rows_of_a_pyramid_and_a_floor():
+    # (lambda_n, lambda_t1, lambda_t2) = (2, 1, 0), mu 0.5: on the circle's edge, outside
+    # the 4-facet pyramid (inner radius mu cos(pi/4) lambda_n = 0.707)
+    rows = [float(r) for r in cone_rows([2.0, 1.0, 0.0], [3], [0.5], (0,), 1.0, facets=4)]
+    inner = np.cos(np.pi / 4)
+    np.testing.assert_allclose(rows, [inner - 1.0, inner, inner + 1.0, inner])
+    # the pyramid implies lambda_n >= 0: no row for it unless a floor asks for one
+    rows = cone_rows([2.0, 0.0, 0.0], [3], [0.5], (0,), 1.0, facets=4, floor=0.5)
+    assert [float(r) for r in rows][0] == 1.5 and len(rows) == 5
+    assert len(cone_rows([2.0, 1.0], [2], [0.5], (0,), 1.0, floor=0.5)) == 3
+    for bad in ({"cone_facets": 3}, {"cone_facets": 6.0}, {"min_normal_force": -1.0},
+                {"min_normal_force": True}, {"contact_tolerance": 0.0}):
+        with pytest.raises(InvalidInput, match=next(iter(bad))):
+            StanceOptions(**bad)
+
+
 @pytest.mark.parametrize("gain", [100.0, 1.0])
 def test_an_open_contact_with_a_slip_gain_flies_within_it_and_lands_at_its_speed(gain):
     """`open_slip_gains`: where mass 1 is open, v_x^2 <= K z at every node but its

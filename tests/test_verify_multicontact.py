@@ -220,6 +220,35 @@ def test_planar_box_dropped_tilted_lands_corner_by_corner_and_comes_to_rest():
                       <= mu * impact.normal_impulses + 1e-12)
 
 
+@pytest.mark.parametrize("contact_tolerance", [1e-8, 1e-6])
+def test_corners_within_the_contact_tolerance_take_part_in_one_impact(contact_tolerance):
+    """The box dropped nearly flat, frictionless, corner 0 lower by delta = 1e-7 m: with a
+    contact tolerance above delta both corners take part in one impact, each normal
+    impulse m v / 2 and the box at rest; below it, corner 0 alone, with the impulse
+    m v / (1 + m a^2 / I) of a single corner (to O(delta / a)), and the box rotates."""
+    h, delta, a = 0.05, 1e-7, HALF_WIDTH
+    pitch = delta / (2 * a)
+    z0 = HALF_HEIGHT + h + a * np.sin(pitch) - HALF_HEIGHT * (1 - np.cos(pitch))
+    speed = np.sqrt(2 * G * h)  # of corner 0 at its touchdown
+    sim = simulate_multicontact(planar_box(0.0), np.array([0.0, z0, pitch, 0, 0, 0]), None,
+                                0.15, options=MultiContactOptions(
+                                    contact_tolerance=contact_tolerance))
+    assert sim.success
+    first = sim.impacts[0]
+    assert first.time == pytest.approx(np.sqrt(2 * h / G), rel=1e-8)
+    if contact_tolerance > delta:
+        assert first.contacts == (0, 1)
+        np.testing.assert_allclose(first.normal_impulses, MASS * speed / 2, rtol=1e-5)
+        np.testing.assert_allclose(first.post[3:], 0.0, atol=1e-5)
+    else:
+        inertia = planar_mass_matrix()[2, 2]
+        assert first.contacts == (0,)
+        np.testing.assert_allclose(first.normal_impulses,
+                                   MASS * speed / (1 + MASS * a * a / inertia), rtol=1e-5)
+        assert abs(first.post[5]) > 1.0  # it turns about corner 0
+        assert len(sim.impacts) > 1
+
+
 @pytest.mark.parametrize("ratio", [0.5, 0.9, 1.5])
 def test_planar_box_pushed_sticks_below_mu_m_g_and_slides_above(ratio):
     """A force F = ratio mu m g at the centre of mass: no motion for F < mu m g (0.9 is

@@ -10,7 +10,8 @@ system's dynamics, contact-accurate by construction:
 * a stance S (the closed contacts, each sticking): M a = f + J_S lambda with
   J_S^T a + (dJ_S/dt)^T v = -(stabilisation) (index-reduced, Baumgarte: the normal rows
   2 alpha v_n + alpha^2 gap, the tangential ones alpha v_t); at every node
-  lambda_n,i >= 0 and the cone ||lambda_t,i|| <= c mu_i lambda_n,i (c: `cone_margin`), the
+  lambda_n,i >= `min_normal_force` and the cone ||lambda_t,i|| <= c mu_i lambda_n,i (c:
+  `cone_margin`; or its inscribed pyramid, `cone_facets`), the
   open contacts' gaps >= 0 (not at a contact's own touchdown or lift-off node, where the
   rows would be degenerate: `StanceOptions.open_slip_gains`);
 * a touchdown of contacts D (a stance S -> S + D) at a free time inside the control
@@ -114,6 +115,18 @@ class StanceOptions:
         cone_margin: c of the node rows ||lambda_t|| <= c mu lambda_n. Below 1 for 3-D
             contacts: the reference's mode decisions use a pyramid of 16 facets, 1.9 %
             smaller than the cone.
+        cone_facets: None: a 3-D contact's node row is the circular cone
+            (c mu lambda_n)^2 - ||lambda_t||^2 >= 0, whose gradient vanishes at zero force
+            (a lifting or lightly loaded foot), where no constraint qualification holds;
+            an even number n >= 4: the n linear rows of the inscribed pyramid,
+            c mu cos(pi / n) lambda_n - d_k . lambda_t >= 0 for the facets' normals d_k
+            (solo12's jump along a fixed schedule: 196 IPOPT iterations with 4 facets
+            against 1136 with the circle; benchmarks/legged.md). Impulses too.
+        min_normal_force: lambda_n >= this [N] for every closed contact at every node
+            (not the impulses). A plan left free puts lightly loaded feet on the floor of
+            the cone, where the reference's mode decision turns on round-off (solo12's
+            crouch: 0.0-0.3 N per foot at the cone's edge; the reference let a foot lift
+            and three slip).
         flight_gap, contact_gap: `stance_schedule` opens a contact above `flight_gap` [m]
             and closes it again below `contact_gap` [m].
         switch_margin: touchdowns keep this fraction of a control interval from its ends.
@@ -168,6 +181,13 @@ class StanceOptions:
         end_state_tolerance, gap_tolerance, cone_tolerance: the verification's.
         budget: model evaluations of the multi-contact reference for the replay and all
             restarts together (`MultiContactReplay.budget`).
+        contact_tolerance: the reference's (`MultiContactOptions.contact_tolerance`): a
+            gap at most this [m] counts as closed at an impact or a mode change, so that
+            contacts within it take part in one impact. A plan that lands several feet at
+            one instant closes their gaps together to its integrator's accuracy only; the
+            reference's feet then arrive microseconds apart, sequential impacts of fewer
+            contacts with other outcomes (solo12's four-foot landing: 1 us apart, joint
+            velocities after them 12 rad/s from the plan's; with 1e-6 m one impact, 8e-3).
     """
 
     nodes: int = 3
@@ -176,6 +196,8 @@ class StanceOptions:
     radau_stages: int = 3
     baumgarte: float = 20.0
     cone_margin: float = 0.98
+    cone_facets: int | None = None
+    min_normal_force: float = 0.0
     flight_gap: float = 5e-3
     contact_gap: float = 1e-3
     switch_margin: float = 0.02
@@ -193,6 +215,7 @@ class StanceOptions:
     gap_tolerance: float = VerifyOptions.gap_tolerance
     cone_tolerance: float = VerifyOptions.cone_tolerance
     budget: int = 500_000
+    contact_tolerance: float = MultiContactOptions.contact_tolerance
 
     def __post_init__(self) -> None:
         if self.integrator not in ("rk4", "radau"):
@@ -220,6 +243,16 @@ class StanceOptions:
             positive_int(self.blas_threads, "blas_threads")
         if not 0 < self.cone_margin <= 1:
             raise InvalidInput(f"`cone_margin` must lie in (0, 1], got {self.cone_margin}")
+        if self.cone_facets is not None:
+            positive_int(self.cone_facets, "cone_facets")
+            if self.cone_facets < 4 or self.cone_facets % 2:
+                raise InvalidInput(f"`cone_facets` must be None (the circular cone) or an "
+                                   f"even number >= 4, got {self.cone_facets}")
+        if (isinstance(self.min_normal_force, bool)
+                or not isinstance(self.min_normal_force, int | float)
+                or not 0 <= self.min_normal_force < math.inf):
+            raise InvalidInput(f"`min_normal_force` must be a force >= 0 [N], got "
+                               f"{self.min_normal_force!r}")
         if not 0 < self.contact_gap < self.flight_gap:
             raise InvalidInput(f"need 0 < contact_gap < flight_gap, got {self.contact_gap}, "
                                f"{self.flight_gap}")
@@ -237,7 +270,7 @@ class StanceOptions:
             raise InvalidInput(f"`swing_heights` must be a tuple of heights > 0 [m] or None, "
                                f"got {self.swing_heights!r}")
         for name in ("baumgarte", "tol", "end_state_tolerance", "gap_tolerance",
-                     "cone_tolerance"):
+                     "cone_tolerance", "contact_tolerance"):
             if not getattr(self, name) > 0:
                 raise InvalidInput(f"`{name}` must be positive, got {getattr(self, name)}")
 
@@ -515,22 +548,32 @@ class StanceDynamics:
 
 
 def cone_rows(values, sizes: list[int], mu: list[float], closed: tuple[int, ...],
-              margin: float, keep_normal: bool = False) -> list:
+              margin: float, keep_normal: bool = False, facets: int | None = None,
+              floor: float = 0.0) -> list:
     """Expressions >= 0 that hold the closed contacts' forces (or impulses) in their cones:
-    lambda_n >= 0 and (c mu lambda_n)^2 - ||lambda_t||^2 >= 0 (planar: c mu lambda_n -+
-    lambda_t >= 0, linear, and with c mu > 0 no row lambda_n >= 0: the two imply it, and
-    at a vanishing force or impulse, a soft landing's, the three rows were all active and
-    dependent; `keep_normal` keeps it, for measuring violations). Numbers or CasADi
-    expressions."""
+    lambda_n - floor >= 0 and (c mu lambda_n)^2 - ||lambda_t||^2 >= 0, or with `facets`
+    the inscribed pyramid's c mu cos(pi / n) lambda_n - d_k . lambda_t >= 0 for the n
+    facets' normals d_k (planar: c mu lambda_n -+ lambda_t >= 0). Where the linear rows
+    imply lambda_n >= 0 (c mu > 0, planar or a pyramid) and `floor` is 0, no row
+    lambda_n >= 0: at a vanishing force or impulse, a soft landing's, the rows were all
+    active and dependent; `keep_normal` keeps it, for measuring violations. Numbers or
+    CasADi expressions."""
     rows = []
     offset = 0
     for size, i in zip(sizes, closed, strict=True):
         normal = values[offset]
-        if keep_normal or size != 2 or not margin * mu[i] > 0:
-            rows.append(normal)
+        implied = margin * mu[i] > 0 and (size == 2 or (size == 3 and facets is not None))
+        if keep_normal or floor > 0 or not implied:
+            rows.append(normal - floor)
         if size == 2:
             rows += [margin * mu[i] * normal - values[offset + 1],
                      margin * mu[i] * normal + values[offset + 1]]
+        elif size == 3 and facets is not None:
+            inner = margin * mu[i] * math.cos(math.pi / facets)
+            for k in range(facets):
+                angle = 2 * math.pi * k / facets
+                rows.append(inner * normal - math.cos(angle) * values[offset + 1]
+                            - math.sin(angle) * values[offset + 2])
         elif size == 3:
             tangential = values[offset + 1:offset + 3]
             rows.append((margin * mu[i] * normal) ** 2 - ca.sumsqr(tangential))
@@ -747,7 +790,9 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                 rows = open_rows(xs, closed, switching)
                 if closed:
                     rows += cone_rows(dyn.force(closed)(xs, us), dyn.sizes(closed), dyn.mu,
-                                      closed, options.cone_margin)
+                                      closed, options.cone_margin,
+                                      facets=options.cone_facets,
+                                      floor=options.min_normal_force)
                 contact_functions[key] = bounded_rows(
                     f"contact_rows_{len(contact_functions)}", [xs, us],
                     [(0.0, row, np.inf) for row in rows])
@@ -765,7 +810,8 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
             else:
                 lam = dyn.force(closed)(x, u)
             for row in cone_rows(lam, dyn.sizes(closed), dyn.mu, closed,
-                                 options.cone_margin):
+                                 options.cone_margin, facets=options.cone_facets,
+                                 floor=options.min_normal_force):
                 opti.subject_to(row >= 0)
 
     x0 = np.concatenate([problem.q0, problem.v0])
@@ -871,7 +917,7 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                 opti.subject_to(dyn.gaps(x)[i] == 0)
             post, impulse = dyn.impact(after)(x)
             for row in cone_rows(impulse, dyn.sizes(after), dyn.mu, after,
-                                 options.cone_margin):
+                                 options.cone_margin, facets=options.cone_facets):
                 opti.subject_to(row >= 0)
             x = opti.variable(2 * n_q)
             opti.subject_to(x == post)
@@ -992,7 +1038,8 @@ def verify_stances(problem: ContactProblem, stances: tuple[Stance, ...], t: np.n
     replayed = ReplayedPlan(cls=cls, x0=x0, clocks=clocks, states=boundary_states,
                             controls=u, horizon=horizon)
     simulation = MultiContactOptions(start_gap_tolerance=max(options.gap_tolerance, 1e-12),
-                                     velocity_tolerance=RESTART_VELOCITY_TOLERANCE)
+                                     velocity_tolerance=RESTART_VELOCITY_TOLERANCE,
+                                     contact_tolerance=options.contact_tolerance)
     budget = EvaluationBudget(options.budget)
     notes: list[str] = []
     sim = replay_multicontact(cls, x0, clocks, u, horizon,

@@ -346,7 +346,7 @@ def _mode_forces(model: _Model, terms: _Terms, v: np.ndarray, phase: _Phase,
     for i in phase.closed():
         e_n = model.unit(model.normal_col(i))
         column = e_n.copy()
-        if phase.modes[i] == ContactMode.SLIP:
+        if phase.modes[i] == ContactMode.SLIP and model.n_t[i]:  # frictionless: no term
             column[model.tangent_cols(i)] -= model.mu[i] * _slip_direction(
                 model, terms, v, i, phase.directions[i], direction_floor)
         force_cols.append(column)
