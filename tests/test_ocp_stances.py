@@ -281,6 +281,34 @@ def test_a_stance_keeps_its_minimal_normal_force():
             assert plan.verification.passed, plan.verification.summary()
 
 
+def test_a_touchdown_approaches_at_least_at_its_touchdown_speed():
+    """Mass 1 lowered from 0.1 m with its vertical force, the cost the integral of v_z^2:
+    it creeps down and lands slower than 1 m/s. With `touchdown_speed` 1 m/s its approach
+    at the touchdown node is exactly that (the row binds), and the reference agrees."""
+    h = 0.1
+    p = problem([0.0, h, 1.0, 0.0], [0.0] * 4, horizon=0.4, n_intervals=4,
+                u_lower=[0.0] * 4, u_upper=[0.0, 40.0, 0.0, 0.0],
+                running=lambda tf: tf.y[tf.v_index][1] ** 2)
+    t = np.linspace(0.0, 0.4, 41)
+    x = np.zeros((len(t), 8))
+    x[:, 1] = np.maximum(h * (1 - t / 0.25), 0.0)
+    x[:, 2] = 1.0
+    x[:, 5] = np.where(t < 0.25, -h / 0.25, 0.0)
+    stances = (Stance((1,), 0.0, 0.25), Stance((0, 1), 0.25, 0.4))
+    speeds = {}
+    for speed in (None, 1.0):
+        plan = resolve_stances(p, stances, StanceOptions(touchdown_speed=speed, tol=1e-10),
+                               guess=(t, x, np.zeros((4, 4))), verbose=False)
+        assert plan.solved, plan.ipopt_status
+        touchdown = int(np.flatnonzero(np.diff(plan.t) == 0)[0])  # pre-impact node
+        speeds[speed] = -plan.x[touchdown, 5]
+        assert plan.verification.passed, plan.verification.summary()
+    assert 0 < speeds[None] < 0.9
+    assert speeds[1.0] == pytest.approx(1.0, rel=1e-6)
+    with pytest.raises(InvalidInput, match="touchdown_speed"):
+        StanceOptions(touchdown_speed=-0.1)
+
+
 def test_cone_rows_of_a_pyramid_and_a_floor():
     # (lambda_n, lambda_t1, lambda_t2) = (2, 1, 0), mu 0.5: on the circle's edge, outside
     # the 4-facet pyramid (inner radius mu cos(pi/4) lambda_n = 0.707)

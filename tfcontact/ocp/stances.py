@@ -127,6 +127,12 @@ class StanceOptions:
             the cone, where the reference's mode decision turns on round-off (solo12's
             crouch: 0.0-0.3 N per foot at the cone's edge; the reference let a foot lift
             and three slip).
+        touchdown_speed: None, or a speed s >= 0 [m/s]: each contact touching down
+            approaches with n_i^T v- <= -s. A touchdown at zero approach speed is an
+            ill-conditioned event (its time moves by the gap's error over the speed):
+            solo12's free-flailing flight brought a foot to its touchdown node moving up
+            at 1.4 m/s (its gap negative just before, between two collocation points), and
+            the reference landed it 3 ms early.
         flight_gap, contact_gap: `stance_schedule` opens a contact above `flight_gap` [m]
             and closes it again below `contact_gap` [m].
         switch_margin: touchdowns keep this fraction of a control interval from its ends.
@@ -198,6 +204,7 @@ class StanceOptions:
     cone_margin: float = 0.98
     cone_facets: int | None = None
     min_normal_force: float = 0.0
+    touchdown_speed: float | None = None
     flight_gap: float = 5e-3
     contact_gap: float = 1e-3
     switch_margin: float = 0.02
@@ -243,6 +250,12 @@ class StanceOptions:
             positive_int(self.blas_threads, "blas_threads")
         if not 0 < self.cone_margin <= 1:
             raise InvalidInput(f"`cone_margin` must lie in (0, 1], got {self.cone_margin}")
+        if self.touchdown_speed is not None and (
+                isinstance(self.touchdown_speed, bool)
+                or not isinstance(self.touchdown_speed, int | float)
+                or not 0 <= self.touchdown_speed < math.inf):
+            raise InvalidInput(f"`touchdown_speed` must be None or a speed >= 0 [m/s], got "
+                               f"{self.touchdown_speed!r}")
         if self.cone_facets is not None:
             positive_int(self.cone_facets, "cone_facets")
             if self.cone_facets < 4 or self.cone_facets % 2:
@@ -403,6 +416,8 @@ class StanceDynamics:
                                 else c.normal)
         self.mu = [c.mu for c in cls.contacts]
         self.gaps = ca.Function("gaps", [self._x], [ca.vertcat(*[c.gap for c in cls.contacts])])
+        self.normal_velocities = ca.Function("normal_velocities", [self._x], [ca.vertcat(*[
+            ca.mtimes(c.normal.T, v) for c in cls.contacts])])  # n_i^T v per contact
         self.slip_squared = ca.Function("slip_squared", [self._x], [ca.vertcat(*[
             ca.sumsqr(ca.mtimes(c.tangents.T, v)) if c.n_tangents else ca.SX(0.0)
             for c in cls.contacts])])  # ||v_t||^2 per contact
@@ -915,6 +930,8 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
             after = stances[jb].closed
             for i in set(after) - set(closed):
                 opti.subject_to(dyn.gaps(x)[i] == 0)
+                if options.touchdown_speed is not None:
+                    opti.subject_to(dyn.normal_velocities(x)[i] <= -options.touchdown_speed)
             post, impulse = dyn.impact(after)(x)
             for row in cone_rows(impulse, dyn.sizes(after), dyn.mu, after,
                                  options.cone_margin, facets=options.cone_facets):
