@@ -5,19 +5,23 @@ ground (independent contacts, so every stance's Delassus matrix is regular)."""
 import casadi as ca
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
 
 from tfcontact.errors import InvalidInput
 from tfcontact.ocp import ContactProblem
 from tfcontact.ocp.stances import (
     Stance,
+    StanceDynamics,
     StanceOptions,
     cone_rows,
+    interior_weights,
     resolve_stances,
     stance_schedule,
     swings,
 )
 from tfcontact.timefreezing import time_freeze
 from tfcontact.timefreezing.cls import ComplementarityLagrangianSystem, Contact
+from tfcontact.verify import EventKind, replay_multicontact
 
 G = 9.81
 MASSES = (1.0, 2.0)
@@ -307,6 +311,84 @@ def test_a_touchdown_approaches_at_least_at_its_touchdown_speed():
     assert speeds[1.0] == pytest.approx(1.0, rel=1e-6)
     with pytest.raises(InvalidInput, match="touchdown_speed"):
         StanceOptions(touchdown_speed=-0.1)
+
+
+def test_interior_weights_interpolate_the_collocation_polynomial():
+    """A polynomial of degree s through (0, c_1, ..., c_s) is reproduced exactly at the
+    interior points, `count` equally spaced between consecutive ones."""
+    c = np.array([0.155051025721682, 0.644948974278318, 1.0])  # Radau IIA, s = 3
+    weights = interior_weights(c, 2)
+    nodes = np.concatenate([[0.0], c])
+    points = np.concatenate([np.linspace(a, b, 4)[1:3] for a, b in zip(nodes[:-1], nodes[1:],
+                                                                strict=True)])
+    assert weights.shape == (6, 4)
+    for coefficients in ([1.0, 0, 0, 0], [0.3, -2.0, 0.5, 4.0]):
+        values = np.polyval(coefficients, nodes)
+        np.testing.assert_allclose(weights @ values, np.polyval(coefficients, points),
+                                   atol=1e-12)
+
+
+def block_with_pendulum(mass=1.0, bob=1.0, length=0.1, mu=0.5):
+    """A block on the ground (q = x, z) with a pendulum (angle q_3 from hanging down, a
+    point bob on a massless rod) swinging from its centre; u pushes the block along x. The
+    pendulum's swing loads the block's contact: its forces vary within an element."""
+    q, v, u = ca.SX.sym("q", 3), ca.SX.sym("v", 3), ca.SX.sym("u", 1)
+    angle, rate = q[2], v[2]
+    coupling = bob * length * ca.vertcat(ca.cos(angle), ca.sin(angle))
+    mass_matrix = ca.vertcat(
+        ca.horzcat(mass + bob, 0, coupling[0]), ca.horzcat(0, mass + bob, coupling[1]),
+        ca.horzcat(coupling[0], coupling[1], bob * length**2))
+    forces = ca.vertcat(u[0] + coupling[1] * rate**2,
+                        -(mass + bob) * G - coupling[0] * rate**2,
+                        -bob * G * length * ca.sin(angle))
+    contact = Contact(gap=q[1], tangents=ca.jacobian(q[0], q).T, mu=mu, name="block")
+    return ComplementarityLagrangianSystem(q=q, v=v, u=u, mass_matrix=mass_matrix,
+                                           forces=forces, contacts=(contact,))
+
+
+def test_interior_rows_keep_the_stick_force_in_its_cone_between_collocation_points():
+    """The block pushed as hard as it can while it sticks, the pendulum swinging from
+    1 rad, two control intervals of two Radau elements: the rows at the collocation
+    points alone let the true stance's friction force (integrated finely from each
+    interval's start) leave the cone c mu lambda_n between them by more than 5 %, and the
+    reference slips the block; with 3 interior points per gap it stays within 0.5 %,
+    and the reference's block sticks."""
+    cls = block_with_pendulum()
+    tf = time_freeze(cls)
+    horizon, margin, mu = 0.4, StanceOptions.cone_margin, cls.contacts[0].mu
+    p = ContactProblem(system=tf, q0=[0.0, 0.0, 1.0], v0=[0.0] * 3, horizon=horizon,
+                       n_intervals=2, u_lower=[-20.0], u_upper=[20.0],
+                       running_cost=(tf.u[0] - 20.0) ** 2)
+    t = np.linspace(0.0, horizon, 41)
+    x = np.zeros((len(t), 6))
+    x[:, 2] = np.cos(10 * t)
+    dyn = StanceDynamics(cls)
+    excess, slipped = {}, {}
+    for count in (0, 3):
+        plan = resolve_stances(p, (Stance((0,), 0.0, horizon),),
+                               StanceOptions(nodes=2, tol=1e-10, interior_rows=count),
+                               guess=(t, x, np.zeros((2, 1))), verbose=False)
+        assert plan.solved, plan.ipopt_status
+        worst = -np.inf
+        for k in range(2):
+            def rhs(_, state, u_k=plan.u[k]):
+                return np.asarray(dyn.rhs((0,))(state, u_k)).ravel()
+            with np.errstate(under="ignore"):
+                sol = solve_ivp(rhs, (0.0, horizon / 2), plan.boundary_states[k],
+                                rtol=1e-11, atol=1e-12, dense_output=True)
+            for s in np.linspace(0.0, horizon / 2, 201):
+                lam = np.asarray(dyn.force((0,))(sol.sol(s), plan.u[k])).ravel()
+                worst = max(worst, abs(lam[1]) / (margin * mu * lam[0]) - 1.0)
+        excess[count] = worst
+        reference = replay_multicontact(cls, plan.boundary_states[0], np.array([0.0, 0.2,
+                                                                                 0.4]),
+                                        plan.u, horizon)
+        assert reference.success, reference.message
+        slipped[count] = any(e.kind == EventKind.SLIP for e in reference.events)
+    assert excess[0] > 0.05 and slipped[0]
+    assert excess[3] < 0.005 and not slipped[3]
+    with pytest.raises(InvalidInput, match="interior_rows"):
+        StanceOptions(interior_rows=1, integrator="rk4")
 
 
 def test_cone_rows_of_a_pyramid_and_a_floor():

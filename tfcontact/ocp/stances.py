@@ -133,7 +133,16 @@ class StanceOptions:
             solo12's free-flailing flight brought a foot to its touchdown node moving up
             at 1.4 m/s (its gap negative just before, between two collocation points), and
             the reference landed it 3 ms early.
-        flight_gap, contact_gap: `stance_schedule` opens a contact above `flight_gap` [m]
+        interior_rows: Radau: the contact rows (the closed contacts' cones and
+            `min_normal_force`, the open ones' gaps and slip rows) also at this many points
+            between each two consecutive collocation points of every element, on the
+            element's collocation polynomial. The rows hold at the collocation points only,
+            and an optimiser presses the forces against them there: solo12's landing with
+            six elements per control interval kept lambda_n >= 1 N at its points but fell
+            to 0.62 N with |lambda_t| / lambda_n = 0.80 > mu between two of them, and the
+            reference slipped that foot (benchmarks/legged.md). Not with
+            `inverse_dynamics` (its forces are variables at the collocation points only).
+ opens a contact above `flight_gap` [m]
             and closes it again below `contact_gap` [m].
         switch_margin: touchdowns keep this fraction of a control interval from its ends.
             With 0.002 bolt's walks found cheaper plans, but one put a touchdown 0.1 ms
@@ -205,6 +214,7 @@ class StanceOptions:
     cone_facets: int | None = None
     min_normal_force: float = 0.0
     touchdown_speed: float | None = None
+    interior_rows: int = 0
     flight_gap: float = 5e-3
     contact_gap: float = 1e-3
     switch_margin: float = 0.02
@@ -250,6 +260,14 @@ class StanceOptions:
             positive_int(self.blas_threads, "blas_threads")
         if not 0 < self.cone_margin <= 1:
             raise InvalidInput(f"`cone_margin` must lie in (0, 1], got {self.cone_margin}")
+        if (isinstance(self.interior_rows, bool) or not isinstance(self.interior_rows, int)
+                or self.interior_rows < 0):
+            raise InvalidInput(f"`interior_rows` must be an integer >= 0, got "
+                               f"{self.interior_rows!r}")
+        if self.interior_rows and (self.integrator != "radau" or self.inverse_dynamics):
+            raise InvalidInput("`interior_rows` needs integrator='radau' with the explicit "
+                               "form (inverse_dynamics=False): the rows lie on an element's "
+                               "collocation polynomial")
         if self.touchdown_speed is not None and (
                 isinstance(self.touchdown_speed, bool)
                 or not isinstance(self.touchdown_speed, int | float)
@@ -562,6 +580,24 @@ class StanceDynamics:
         return self._cache[key]
 
 
+def interior_weights(collocation_points, count: int) -> np.ndarray:
+    """Weights (count s, s + 1) of the interior points of a collocation element: `count`
+    equally spaced points between each two consecutive points of 0, c_1, ..., c_s
+    (fractions of the element), each row the Lagrange basis through those points there, so
+    that a row's weights times (x_start, stage_1, ..., stage_s) is the collocation
+    polynomial's state at that point."""
+    nodes = np.concatenate([[0.0], np.asarray(collocation_points, dtype=float)])
+    points = [a + (b - a) * m / (count + 1) for a, b in itertools.pairwise(nodes)
+              for m in range(1, count + 1)]
+    weights = np.ones((len(points), len(nodes)))
+    for row, tau in enumerate(points):
+        for j, node in enumerate(nodes):
+            for k, other in enumerate(nodes):
+                if k != j:
+                    weights[row, j] *= (tau - other) / (node - other)
+    return weights
+
+
 def cone_rows(values, sizes: list[int], mu: list[float], closed: tuple[int, ...],
               margin: float, keep_normal: bool = False, facets: int | None = None,
               floor: float = 0.0) -> list:
@@ -829,6 +865,37 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                                  floor=options.min_normal_force):
                 opti.subject_to(row >= 0)
 
+    interior_functions: dict = {}
+    interior = (interior_weights(tableau.c, options.interior_rows)
+                if tableau is not None and options.interior_rows else None)
+
+    def interior_contact_rows(x_start, stages, u, closed):
+        """`contact_rows` at the interior points of one element, its states from the
+        collocation polynomial through x_start and the stage states."""
+        key = tuple(closed)
+        if key not in interior_functions:
+            xs = [ca.SX.sym(f"x{j}", 2 * n_q) for j in range(len(stages) + 1)]
+            us = ca.SX.sym("u", n_u)
+            rows = []
+            for weights in interior:
+                z = sum(w * xj for w, xj in zip(weights, xs, strict=True))
+                rows += open_rows(z, closed, frozenset())
+                if closed:
+                    rows += cone_rows(dyn.force(closed)(z, us), dyn.sizes(closed), dyn.mu,
+                                      closed, options.cone_margin,
+                                      facets=options.cone_facets,
+                                      floor=options.min_normal_force)
+            interior_functions[key] = bounded_rows(
+                f"interior_rows_{len(interior_functions)}", [*xs, us],
+                [(0.0, row, np.inf) for row in rows])
+        function, low, up = interior_functions[key]
+        if not function.numel_out(0):
+            return
+        if repeated is not None:
+            repeated.bounded(low, function, up, x_start, *stages, u)
+        else:
+            opti.subject_to(opti.bounded(low, function(x_start, *stages, u), up))
+
     x0 = np.concatenate([problem.q0, problem.v0])
     x = opti.variable(2 * n_q)
     opti.subject_to(x == x0)
@@ -904,6 +971,8 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                         nodes.append((tb if last else t_stage, z))
                         constrain_node(z, t_stage, u_k, closed, forces[j],
                                        landing if last else frozenset())
+                    if interior is not None:
+                        interior_contact_rows(x, stages, u_k, closed)
                     x = stages[-1]
                     continue
                 x_start = x
