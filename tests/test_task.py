@@ -1064,6 +1064,34 @@ def test_a_two_contact_task_is_resolved_exactly_along_its_stances(tmp_path):
     np.testing.assert_allclose(trajectory.force[:, :, 1], 0.0)
 
 
+def test_a_task_sets_the_stance_resolve_in_its_resolve_table(tmp_path):
+    """`[resolve]`: StanceOptions fields of the stance re-solve that `tfcontact plan`
+    runs; unknown keys, bad values and a task without a stance re-solve are refused."""
+    import dataclasses
+
+    from tfcontact.scenes.plans import task_plan
+
+    shipped = shipped_tasks()["biped-walk"]
+    path = tmp_path / "walk.toml"
+    path.write_text(shipped.read_text() + "\n[resolve]\ncone_facets = 4\n"
+                    "min_normal_force = 1.5\ntouchdown_speed = 0.1\ninterior_rows = 1\n"
+                    "contact_tolerance = 1e-6\ncone_margin = 0.9\n")
+    options = task_plan(path).stages[-1].options
+    assert (options.cone_facets, options.min_normal_force, options.touchdown_speed,
+            options.interior_rows, options.contact_tolerance, options.cone_margin) == (
+        4, 1.5, 0.1, 1, 1e-6, 0.9)
+    assert options.open_slip_gains  # the task's own settings stay
+    task = load_task(path)
+    with pytest.raises(InvalidInput, match="unknown keys \\['tol'\\]"):
+        dataclasses.replace(task, resolve={"tol": 1e-3})
+    with pytest.raises(InvalidInput, match="cone_facets"):
+        dataclasses.replace(task, resolve={"cone_facets": 3})
+    with pytest.raises(InvalidInput, match="`resolve` sets the stance re-solve"):
+        dataclasses.replace(task, exact_resolve=False)
+    with pytest.raises(InvalidInput, match="`resolve` must be a table"):
+        dataclasses.replace(task, resolve=[("cone_facets", 4)])
+
+
 def test_a_task_sets_the_stance_resolves_elements(tmp_path):
     """`resolve_elements`: the Radau elements per interval of the stance re-solve that
     `tfcontact plan` runs; refused where no stance re-solve runs."""

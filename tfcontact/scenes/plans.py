@@ -139,7 +139,7 @@ def task_plan(source: str | Path) -> Plan:
     gains = tuple(c.no_slip_gain if c.no_slip else None for c in data.contacts)
     resolve = (ExactResolve() if len(data.contacts) == 1 else StanceResolve(
         StanceOptions(open_slip_gains=gains,
-                      nodes=data.resolve_elements or StanceOptions.nodes),
+                      nodes=data.resolve_elements or StanceOptions.nodes, **data.resolve),
         path_rows=resolve_path_rows(data)))
     if not data.exact_resolve:
         return Plan(name=data.name, summary=data.description or f"task file {path}",

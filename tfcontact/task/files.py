@@ -53,6 +53,7 @@ from typing import Any
 from tfcontact.errors import IncompatibleOptions, InvalidInput
 from tfcontact.robot.terrain import Box, Hole, Plane, Region, Terrain
 from tfcontact.task.spec import (
+    RESOLVE_SETTINGS,
     ContactEntry,
     Costs,
     Goals,
@@ -70,8 +71,8 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "actuated", "effort", "bounds", "terrain", "waypoints", "goals", "costs", "solver",
         "guess", "a_n", "gap_scale", "exact_resolve",
         "complementarity_tolerance", "finite_elements", "friction_model", "periodic",
-        "period", "period_from", "barrier", "resolve_elements", "start_ranges",
-        "attempts"}
+        "period", "period_from", "barrier", "resolve_elements", "resolve",
+        "start_ranges", "attempts"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "clearance", "clearance_speed",
@@ -158,6 +159,7 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         a_n=top.get("a_n", 100.0), gap_scale=top.get("gap_scale", 30.0),
         exact_resolve=top.get("exact_resolve", False),
         resolve_elements=top.get("resolve_elements"), attempts=top.get("attempts"),
+        resolve=_table(top.get("resolve", {}), "resolve", set(RESOLVE_SETTINGS)),
         complementarity_tolerance=top.get("complementarity_tolerance"),
         finite_elements=top.get("finite_elements"),
         friction_model=top.get("friction_model", "cone"),

@@ -16,6 +16,7 @@ from types import MappingProxyType
 from typing import Any
 
 from tfcontact.errors import InvalidInput, positive_int
+from tfcontact.ocp.stances import StanceOptions
 from tfcontact.robot.spec import BASES
 from tfcontact.robot.terrain import Plane, Region, Terrain
 from tfcontact.timefreezing import InscribedPyramid, SmoothedCone, SpatialFriction
@@ -47,6 +48,11 @@ def _names(mapping: Mapping[str, Any], where: str) -> dict[str, Any]:
     if not isinstance(mapping, Mapping) or not all(isinstance(k, str) and k for k in mapping):
         raise InvalidInput(f"`{where}` must be a table of names, got {mapping!r}")
     return dict(mapping)
+
+
+RESOLVE_SETTINGS = frozenset({"cone_facets", "min_normal_force", "touchdown_speed",
+                              "interior_rows", "contact_tolerance", "cone_margin"})
+"""The `tfcontact.ocp.StanceOptions` fields a task's `[resolve]` table may set."""
 
 
 def _frozen(mapping: Mapping[str, Any]) -> Mapping[str, Any]:
@@ -431,6 +437,11 @@ class Task:
             (several contacts; default `StanceOptions.nodes`, 3). Fewer elements make a
             cheaper NLP and larger local defects (order 5: about (3/2)^5 = 7.6 times
             larger with 2 than with 3), which the verification checks.
+        resolve: settings of the stance re-solve (several contacts), a `[resolve]` table
+            of `RESOLVE_SETTINGS`, each the `tfcontact.ocp.StanceOptions` field of its
+            name: `cone_facets`, `min_normal_force`, `touchdown_speed`, `interior_rows`,
+            `contact_tolerance`, `cone_margin`. What a plan of four 3-D feet needed is in
+            benchmarks/legged.md.
         attempts: solves of the plan at most (default: the preset's): a plan that fails
             is solved again from its guess perturbed (`ContactSolverOptions.attempts`).
             With `exact_resolve` the whole plan runs again, discovery and re-solve
@@ -468,6 +479,7 @@ class Task:
     barrier: str | None = None
     exact_resolve: bool = False
     resolve_elements: int | None = None
+    resolve: Mapping[str, Any] = field(default_factory=dict)
     attempts: int | None = None
     description: str = ""
 
@@ -563,6 +575,19 @@ class Task:
                 raise InvalidInput(
                     "`resolve_elements` sets the stance re-solve, which runs with "
                     "`exact_resolve = true` and several contacts; remove it or set both")
+        if not isinstance(self.resolve, Mapping):
+            raise InvalidInput(f"`resolve` must be a table, got {self.resolve!r}")
+        if self.resolve:
+            unknown = sorted(set(self.resolve) - RESOLVE_SETTINGS)
+            if unknown:
+                raise InvalidInput(f"`resolve` has unknown keys {unknown}; its keys: "
+                                   f"{', '.join(sorted(RESOLVE_SETTINGS))}")
+            if not self.exact_resolve or len(self.contacts) < 2:
+                raise InvalidInput(
+                    "`resolve` sets the stance re-solve, which runs with "
+                    "`exact_resolve = true` and several contacts; remove it or set both")
+            StanceOptions(**self.resolve)  # its checks name the setting
+        object.__setattr__(self, "resolve", _frozen(dict(self.resolve)))
         if self.attempts is not None:
             object.__setattr__(self, "attempts", positive_int(self.attempts, "attempts"))
         if not isinstance(self.description, str):
