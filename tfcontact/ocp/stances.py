@@ -133,14 +133,15 @@ class StanceOptions:
             solo12's free-flailing flight brought a foot to its touchdown node moving up
             at 1.4 m/s (its gap negative just before, between two collocation points), and
             the reference landed it 3 ms early.
-        interior_rows: Radau: the contact rows (the closed contacts' cones and
-            `min_normal_force`, the open ones' gaps and slip rows) also at this many points
-            between each two consecutive collocation points of every element, on the
-            element's collocation polynomial. The rows hold at the collocation points only,
-            and an optimiser presses the forces against them there: solo12's landing with
-            six elements per control interval kept lambda_n >= 1 N at its points but fell
-            to 0.62 N with |lambda_t| / lambda_n = 0.80 > mu between two of them, and the
-            reference slipped that foot (benchmarks/legged.md). Not with
+        interior_rows: Radau: the closed contacts' rows (their cones and
+            `min_normal_force`) also at this many points between each two consecutive
+            collocation points of every element, on the element's collocation polynomial.
+            The rows hold at the collocation points only, and an optimiser presses the
+            forces against them there: solo12's landing with six elements per control
+            interval kept lambda_n >= 1 N at its points but fell to 0.62 N with
+            |lambda_t| / lambda_n = 0.80 > mu between two of them, and the reference
+            slipped that foot (benchmarks/legged.md). The open contacts' gap rows there
+            too made that NLP creep (500 IPOPT iterations against 92). Not with
             `inverse_dynamics` (its forces are variables at the collocation points only).
  opens a contact above `flight_gap` [m]
             and closes it again below `contact_gap` [m].
@@ -870,21 +871,20 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                 if tableau is not None and options.interior_rows else None)
 
     def interior_contact_rows(x_start, stages, u, closed):
-        """`contact_rows` at the interior points of one element, its states from the
-        collocation polynomial through x_start and the stage states."""
+        """The closed contacts' rows at the interior points of one element, its states
+        from the collocation polynomial through x_start and the stage states."""
         key = tuple(closed)
+        if not closed:
+            return
         if key not in interior_functions:
             xs = [ca.SX.sym(f"x{j}", 2 * n_q) for j in range(len(stages) + 1)]
             us = ca.SX.sym("u", n_u)
             rows = []
             for weights in interior:
                 z = sum(w * xj for w, xj in zip(weights, xs, strict=True))
-                rows += open_rows(z, closed, frozenset())
-                if closed:
-                    rows += cone_rows(dyn.force(closed)(z, us), dyn.sizes(closed), dyn.mu,
-                                      closed, options.cone_margin,
-                                      facets=options.cone_facets,
-                                      floor=options.min_normal_force)
+                rows += cone_rows(dyn.force(closed)(z, us), dyn.sizes(closed), dyn.mu,
+                                  closed, options.cone_margin, facets=options.cone_facets,
+                                  floor=options.min_normal_force)
             interior_functions[key] = bounded_rows(
                 f"interior_rows_{len(interior_functions)}", [*xs, us],
                 [(0.0, row, np.inf) for row in rows])
