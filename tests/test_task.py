@@ -1092,6 +1092,19 @@ def test_a_task_sets_the_stance_resolve_in_its_resolve_table(tmp_path):
         dataclasses.replace(task, resolve=[("cone_facets", 4)])
 
 
+def test_a_discovery_before_a_stance_resolve_is_checked_by_the_multicontact_reference():
+    """The discovery's relaxed plan is the stance re-solve's guess: it is checked by the
+    multi-contact reference alone (no FESD re-simulation where that stops: more than 15
+    minutes on solo12's jump); a discovery that is the plan keeps the automatic choice."""
+    from tfcontact.scenes.plans import task_plan
+    from tfcontact.verify import AutoReplay, MultiContactReplay
+
+    walk = task_plan("biped-walk").stages[0].build(None)
+    assert isinstance(walk.options.verify.replay, MultiContactReplay)
+    hop = task_plan("hopper-vertical").stages[0].build(None)
+    assert isinstance(hop.options.verify.replay, AutoReplay)
+
+
 def test_a_task_sets_the_stance_resolves_elements(tmp_path):
     """`resolve_elements`: the Radau elements per interval of the stance re-solve that
     `tfcontact plan` runs; refused where no stance re-solve runs."""

@@ -29,6 +29,7 @@ from tfcontact.scenes.pipeline import (
     StanceResolve,
     run_stages,
 )
+from tfcontact.verify import AutoReplay, MultiContactReplay
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -115,6 +116,14 @@ def task_plan(source: str | Path) -> Plan:
         raise InvalidInput(f"unknown plan `{source}`; available: "
                            f"{', '.join([*PLANS, *shipped])}, or a task file PATH.toml")
     data = load_task(path)
+    # one contact: its sequence with slip phases (`polish`); several: the stances found,
+    # where the no-slip rows hold by construction (an open no-slip contact keeps
+    # v_t^2 <= K gap: it does not skim the ground) and the reach rows are kept
+    gains = tuple(c.no_slip_gain if c.no_slip else None for c in data.contacts)
+    resolve = (ExactResolve() if len(data.contacts) == 1 else StanceResolve(
+        StanceOptions(open_slip_gains=gains,
+                      nodes=data.resolve_elements or StanceOptions.nodes, **data.resolve),
+        path_rows=resolve_path_rows(data)))
 
     def build(_: str | None) -> PlanSetup:
         from tfcontact.robot import Terrain
@@ -129,18 +138,19 @@ def task_plan(source: str | Path) -> Plan:
                              (float(v) for v in (*q0, *v0)), strict=True))
             return build_task(dataclasses.replace(data, start=start)).problem
 
-        return PlanSetup(setup.robot, setup.problem, setup.options, setup.scene, terrain,
+        options = setup.options
+        if (data.exact_resolve and len(data.contacts) > 1
+                and isinstance(options.verify.replay, AutoReplay)
+                and MultiContactReplay.applies_to(cls)):
+            # the discovery's relaxed plan is the stance re-solve's guess, whose own
+            # verification decides: no FESD re-simulation when the multi-contact reference
+            # stops on it (solo12's jump: more than 15 minutes, after an 820 s discovery)
+            options = dataclasses.replace(options, verify=dataclasses.replace(
+                options.verify, replay=MultiContactReplay()))
+        return PlanSetup(setup.robot, setup.problem, options, setup.scene, terrain,
                          start_ranges=dict(data.start_ranges) or None,
                          from_start=from_start)
 
-    # one contact: its sequence with slip phases (`polish`); several: the stances found,
-    # where the no-slip rows hold by construction (an open no-slip contact keeps
-    # v_t^2 <= K gap: it does not skim the ground) and the reach rows are kept
-    gains = tuple(c.no_slip_gain if c.no_slip else None for c in data.contacts)
-    resolve = (ExactResolve() if len(data.contacts) == 1 else StanceResolve(
-        StanceOptions(open_slip_gains=gains,
-                      nodes=data.resolve_elements or StanceOptions.nodes, **data.resolve),
-        path_rows=resolve_path_rows(data)))
     if not data.exact_resolve:
         return Plan(name=data.name, summary=data.description or f"task file {path}",
                     tasks=("task",), stages=(Discover(build),))
