@@ -141,7 +141,8 @@ class StanceOptions:
             interval kept lambda_n >= 1 N at its points but fell to 0.62 N with
             |lambda_t| / lambda_n = 0.80 > mu between two of them, and the reference
             slipped that foot (benchmarks/legged.md). The open contacts' gap rows there
-            too made that NLP creep (500 IPOPT iterations against 92). Not with
+            too made that NLP creep (stopped after 500 IPOPT iterations; 92 without
+            them). Not with
             `inverse_dynamics` (its forces are variables at the collocation points only).
  opens a contact above `flight_gap` [m]
             and closes it again below `contact_gap` [m].
