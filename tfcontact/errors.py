@@ -26,6 +26,15 @@ def positive_int(value: object, name: str) -> int:
     return int(value)
 
 
+def nonnegative_number(value: object, name: str) -> float:
+    """`value` as a float if it is a finite number >= 0 (not a bool), else `InvalidInput`
+    naming the argument `name`."""
+    if (isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating)
+            or not 0 <= value < np.inf):
+        raise InvalidInput(f"`{name}` must be a finite number >= 0, got {value!r}")
+    return float(value)
+
+
 class IncompatibleOptions(TfcontactError, ValueError):
     """Two options were given that cannot be used together."""
 

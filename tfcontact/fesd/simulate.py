@@ -54,7 +54,7 @@ from tfcontact.fesd.discretization import (
     switch_times,
 )
 from tfcontact.fesd.system import HeavisideSystem, StewartSystem
-from tfcontact.fesd.tableau import Scheme, Tableau
+from tfcontact.fesd.tableau import Scheme, Tableau, lagrange_weights
 from tfcontact.mpcc import Homotopy, Ipopt, MpccResult, MpccSolver, Relaxation, Scholtes
 
 FROZEN_RATE_TOL = 1e-3
@@ -306,7 +306,7 @@ class SimulationResult:
         first, last, theta = self.locate(t, side=side, tol=tol)
         if theta is None:  # a frozen run: the jump
             return (self.x[last + 1] if side == "post" else self.x[first]).copy()
-        weights = _lagrange_weights(self._nodes(), theta)
+        weights = lagrange_weights(self._nodes(), theta)
         return weights @ self._element_values(first)
 
     def locate(self, t: float, *, side: Literal["post", "pre"] = "post", tol: float = 1e-8
@@ -364,20 +364,11 @@ class SimulationResult:
         return np.vstack([self.x[e][None, :], self.x_stages[e]])
 
 
-def _lagrange_weights(nodes: np.ndarray, theta: float) -> np.ndarray:
-    weights = np.ones(nodes.size)
-    for j, nj in enumerate(nodes):
-        for k, nk in enumerate(nodes):
-            if k != j:
-                weights[j] *= (theta - nk) / (nj - nk)
-    return weights
-
-
 def _solve_clock(nodes: np.ndarray, clock: np.ndarray, t: float) -> float:
     """theta in [0, 1] where the clock's interpolation polynomial equals t: bisection (the
     clock is non-decreasing), finished by a secant step in the last bracket."""
     def value(theta: float) -> float:
-        return float(_lagrange_weights(nodes, theta) @ clock) - t
+        return float(lagrange_weights(nodes, theta) @ clock) - t
 
     lo, hi = 0.0, 1.0
     f_lo, f_hi = value(lo), value(hi)

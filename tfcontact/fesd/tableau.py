@@ -113,6 +113,19 @@ def collocation_tableau(points: np.ndarray, order: int, name: str) -> Tableau:
     return Tableau(A=A, b=b, c=c, order=order, name=name)
 
 
+def lagrange_weights(nodes: np.ndarray, theta: float) -> np.ndarray:
+    """The Lagrange basis through `nodes` at `theta`: weights w with w @ values the
+    interpolation polynomial's value there (a collocation element's state from its start
+    and stage values at nodes (0, c_1, ..., c_s))."""
+    nodes = np.asarray(nodes, dtype=float)
+    weights = np.ones(nodes.size)
+    for j, nj in enumerate(nodes):
+        for k, nk in enumerate(nodes):
+            if k != j:
+                weights[j] *= (theta - nk) / (nj - nk)
+    return weights
+
+
 def _refine(roots: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
     """Two Newton steps on the Legendre-series polynomial, for roots accurate to round-off."""
     derivative = legendre.legder(coefficients)

@@ -51,8 +51,8 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from tfcontact.errors import InvalidInput, SolveFailed, positive_int
-from tfcontact.fesd.tableau import RadauIIA
+from tfcontact.errors import InvalidInput, SolveFailed, nonnegative_number, positive_int
+from tfcontact.fesd.tableau import RadauIIA, lagrange_weights
 from tfcontact.ocp.contact import ContactProblem, ContactResult
 from tfcontact.ocp.nodes import (
     CAPPED,
@@ -142,9 +142,9 @@ class StanceOptions:
             |lambda_t| / lambda_n = 0.80 > mu between two of them, and the reference
             slipped that foot (benchmarks/legged.md). The open contacts' gap rows there
             too made that NLP creep (stopped after 500 IPOPT iterations; 92 without
-            them). Not with
-            `inverse_dynamics` (its forces are variables at the collocation points only).
- opens a contact above `flight_gap` [m]
+            them). Not with `inverse_dynamics` (its forces are variables at the
+            collocation points only).
+        flight_gap, contact_gap: `stance_schedule` opens a contact above `flight_gap` [m]
             and closes it again below `contact_gap` [m].
         switch_margin: touchdowns keep this fraction of a control interval from its ends.
             With 0.002 bolt's walks found cheaper plans, but one put a touchdown 0.1 ms
@@ -270,22 +270,14 @@ class StanceOptions:
             raise InvalidInput("`interior_rows` needs integrator='radau' with the explicit "
                                "form (inverse_dynamics=False): the rows lie on an element's "
                                "collocation polynomial")
-        if self.touchdown_speed is not None and (
-                isinstance(self.touchdown_speed, bool)
-                or not isinstance(self.touchdown_speed, int | float)
-                or not 0 <= self.touchdown_speed < math.inf):
-            raise InvalidInput(f"`touchdown_speed` must be None or a speed >= 0 [m/s], got "
-                               f"{self.touchdown_speed!r}")
+        if self.touchdown_speed is not None:
+            nonnegative_number(self.touchdown_speed, "touchdown_speed")
         if self.cone_facets is not None:
             positive_int(self.cone_facets, "cone_facets")
             if self.cone_facets < 4 or self.cone_facets % 2:
                 raise InvalidInput(f"`cone_facets` must be None (the circular cone) or an "
                                    f"even number >= 4, got {self.cone_facets}")
-        if (isinstance(self.min_normal_force, bool)
-                or not isinstance(self.min_normal_force, int | float)
-                or not 0 <= self.min_normal_force < math.inf):
-            raise InvalidInput(f"`min_normal_force` must be a force >= 0 [N], got "
-                               f"{self.min_normal_force!r}")
+        nonnegative_number(self.min_normal_force, "min_normal_force")
         if not 0 < self.contact_gap < self.flight_gap:
             raise InvalidInput(f"need 0 < contact_gap < flight_gap, got {self.contact_gap}, "
                                f"{self.flight_gap}")
@@ -591,13 +583,7 @@ def interior_weights(collocation_points, count: int) -> np.ndarray:
     nodes = np.concatenate([[0.0], np.asarray(collocation_points, dtype=float)])
     points = [a + (b - a) * m / (count + 1) for a, b in itertools.pairwise(nodes)
               for m in range(1, count + 1)]
-    weights = np.ones((len(points), len(nodes)))
-    for row, tau in enumerate(points):
-        for j, node in enumerate(nodes):
-            for k, other in enumerate(nodes):
-                if k != j:
-                    weights[row, j] *= (tau - other) / (node - other)
-    return weights
+    return np.array([lagrange_weights(nodes, tau) for tau in points])
 
 
 def cone_rows(values, sizes: list[int], mu: list[float], closed: tuple[int, ...],
@@ -874,9 +860,9 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     def interior_contact_rows(x_start, stages, u, closed):
         """The closed contacts' rows at the interior points of one element, its states
         from the collocation polynomial through x_start and the stage states."""
-        key = tuple(closed)
         if not closed:
             return
+        key = tuple(closed)
         if key not in interior_functions:
             xs = [ca.SX.sym(f"x{j}", 2 * n_q) for j in range(len(stages) + 1)]
             us = ca.SX.sym("u", n_u)
@@ -890,8 +876,6 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                 f"interior_rows_{len(interior_functions)}", [*xs, us],
                 [(0.0, row, np.inf) for row in rows])
         function, low, up = interior_functions[key]
-        if not function.numel_out(0):
-            return
         if repeated is not None:
             repeated.bounded(low, function, up, x_start, *stages, u)
         else:
@@ -1236,8 +1220,7 @@ def node_values(plan: StancePlan, cls, baumgarte: float = StanceOptions.baumgart
             scatter(impulses[k], dyn.impact(closed)(x[k - 1])[1], closed)
         if closed:
             scatter(forces[k], dyn.force(closed)(x[k], controls[k]), closed)
-    normals = cls.function("normals")
-    velocities = np.array([np.asarray(normals(xk[:cls.n_q])).T @ xk[cls.n_q:] for xk in x])
+    velocities = np.asarray(dyn.normal_velocities(x.T)).T
     return {"closed": closed_mask, "u": controls,
             "gap": np.asarray(dyn.gaps(x.T)).T.reshape(n, n_c),
             "normal_velocity": velocities.reshape(n, n_c), "force": forces,

@@ -571,22 +571,18 @@ class Task:
         if self.resolve_elements is not None:
             object.__setattr__(self, "resolve_elements",
                                positive_int(self.resolve_elements, "resolve_elements"))
-            if not self.exact_resolve or len(self.contacts) < 2:
-                raise InvalidInput(
-                    "`resolve_elements` sets the stance re-solve, which runs with "
-                    "`exact_resolve = true` and several contacts; remove it or set both")
         if not isinstance(self.resolve, Mapping):
             raise InvalidInput(f"`resolve` must be a table, got {self.resolve!r}")
-        if self.resolve:
-            unknown = sorted(set(self.resolve) - RESOLVE_SETTINGS)
-            if unknown:
-                raise InvalidInput(f"`resolve` has unknown keys {unknown}; its keys: "
-                                   f"{', '.join(sorted(RESOLVE_SETTINGS))}")
-            if not self.exact_resolve or len(self.contacts) < 2:
+        unknown = sorted(set(self.resolve) - RESOLVE_SETTINGS)
+        if unknown:
+            raise InvalidInput(f"`resolve` has unknown keys {unknown}; its keys: "
+                               f"{', '.join(sorted(RESOLVE_SETTINGS))}")
+        StanceOptions(**self.resolve)  # its checks name the setting
+        for name in ("resolve_elements", "resolve"):
+            if getattr(self, name) and (not self.exact_resolve or len(self.contacts) < 2):
                 raise InvalidInput(
-                    "`resolve` sets the stance re-solve, which runs with "
+                    f"`{name}` sets the stance re-solve, which runs with "
                     "`exact_resolve = true` and several contacts; remove it or set both")
-            StanceOptions(**self.resolve)  # its checks name the setting
         object.__setattr__(self, "resolve", _frozen(dict(self.resolve)))
         if self.attempts is not None:
             object.__setattr__(self, "attempts", positive_int(self.attempts, "attempts"))
