@@ -644,3 +644,40 @@ def test_a_plan_through_the_terrain_is_not_a_success(leg, tmp_path, monkeypatch)
                                                     (Given(solve_clear),)))
     report = plans.run_plan("leg", tmp_path / "clear", verbose=False)
     assert (report.success, report.status) == (True, "converged")
+
+
+def _l_bracket_obj(path):
+    """Two overlapping closed boxes as one mesh, an L in the x-z plane: a bottom bar
+    [0, 0.2] x [-0.05, 0.05] x [0, 0.02] and an upright [0, 0.02] x [-0.05, 0.05] x
+    [0, 0.2]. Its convex hull fills the notch between them."""
+    lines, faces = [], [(1, 3, 4), (1, 4, 2), (5, 6, 8), (5, 8, 7), (1, 2, 6), (1, 6, 5),
+                        (3, 7, 8), (3, 8, 4), (1, 5, 7), (1, 7, 3), (2, 4, 8), (2, 8, 6)]
+    for k, (x, z) in enumerate(((0.2, 0.02), (0.02, 0.2))):
+        lines += [f"v {a} {b} {c}\n" for a in (0.0, x) for b in (-0.05, 0.05) for c in (0.0, z)]
+        lines += [f"f {a + 8 * k} {b + 8 * k} {c + 8 * k}\n" for a, b, c in faces]
+    path.write_text("".join(lines))
+
+
+def test_hulls_that_overlap_are_no_collision_when_the_meshes_stay_apart(tmp_path):
+    # A ball (r 0.02) on an x-z slider in the notch of an L-shaped mesh: 5 cm from both of
+    # its bars, deep inside its hull. Then 1 cm above the bottom bar's top: through it.
+    _l_bracket_obj(tmp_path / "bracket.obj")
+    body = (_link("base", f'<mesh filename="{tmp_path / "bracket.obj"}"/>')
+            + _joint("slide_x", "prismatic", "base", "carriage", axis="1 0 0")
+            + _link("carriage")
+            + _joint("slide_z", "prismatic", "carriage", "ball", axis="0 0 1")
+            + _link("ball", '<sphere radius="0.02"/>'))
+    robot = load_robot(_urdf(tmp_path, "bracket", body))
+    in_notch = check_robot_collisions(robot, [0.0], np.array([[0.07, 0.07]]), [])
+    pair = in_notch.pairs[0]
+    assert (pair.body_a, pair.body_b) == ("base_0", "ball_0")
+    # out of the hull by its nearer face: x + z = 0.22 (through (0.2, 0, 0.02) and
+    # (0.02, 0, 0.2)) or y = +-0.05
+    depth = min((0.22 - 0.14) / math.sqrt(2), 0.05) + 0.02
+    assert pair.min_distance == pytest.approx(-depth, abs=1e-6)
+    assert pair.meshes_apart and in_notch.passed
+    assert any("meshes do not intersect" in note and "'base_0' and 'ball_0'" in note
+               for note in in_notch.notes)
+    through = check_robot_collisions(robot, [0.0, 1.0], np.array([[0.07, 0.07],
+                                                                [0.07, 0.03]]), [])
+    assert not through.pairs[0].meshes_apart and not through.passed

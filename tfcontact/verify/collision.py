@@ -377,12 +377,16 @@ class BodyDistance:
 
 @dataclass(frozen=True)
 class PairDistance:
-    """The closest approach of two collision bodies of the robot [m] and its time [s]."""
+    """The closest approach of two collision bodies of the robot [m] and its time [s];
+    `meshes_apart`: their convex hulls overlap beyond the tolerance (`min_distance`), but
+    the meshes themselves do not intersect at any sample where they do (not a collision).
+    """
 
     body_a: str
     body_b: str
     min_distance: float
     time: float
+    meshes_apart: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -630,13 +634,15 @@ def check_collisions(
             body=geoms[i].name, link=links[i], min_distance=float(terrain_distance[k, j]),
             time=float(times[k]), obstacle=obstacles[nearest[k, j]].name if obstacles else "",
             contact=is_contact[i]))
+    tol = options.tolerance
+    apart = _meshes_apart(model, collision_model, self_pairs, pair_distance, configs, tol,
+                          {i for i, g in enumerate(geoms) if g.name in meshes})
     pair_rows = []
     for j, (a, b) in enumerate(self_pairs):
         k = int(np.argmin(pair_distance[:, j]))
         pair_rows.append(PairDistance(geoms[a].name, geoms[b].name,
-                                      float(pair_distance[k, j]), float(times[k])))
-
-    tol = options.tolerance
+                                      float(pair_distance[k, j]), float(times[k]),
+                                      meshes_apart=j in apart))
     hints = []
     for i, b in zip(bodies, body_rows, strict=True):
         if b.contact or not b.min_distance < options.touch_distance:
@@ -651,7 +657,8 @@ def check_collisions(
     hints = tuple(hints)
     offenders = [(b.min_distance, _through(b)) for b in body_rows] if obstacles else []
     offenders += [(p.min_distance, f"body '{p.body_a}' {_depth(p.min_distance)} body "
-                   f"'{p.body_b}' at t = {p.time:.3f} s") for p in pair_rows]
+                   f"'{p.body_b}' at t = {p.time:.3f} s") for p in pair_rows
+                  if not p.meshes_apart]
     passed = all(d >= -tol for d, _ in offenders)
     if not passed:
         status = CollisionStatus.PENETRATION
@@ -668,6 +675,12 @@ def check_collisions(
     if meshes:
         notes.append(f"{len(meshes)} mesh bodies checked as their convex hulls: their "
                      "distances are lower bounds")
+    overlapping = [p for p in pair_rows if p.meshes_apart]
+    if overlapping:
+        notes.append("convex hulls overlapping while their meshes do not intersect (not "
+                     "collisions): " + ", ".join(f"'{p.body_a}' and '{p.body_b}' (hulls "
+                                                 f"{-1e3 * p.min_distance:.1f} mm deep)"
+                                                 for p in overlapping))
     if options.substeps == 1:
         notes.append("checked at the samples only (a body may pass through a thin obstacle "
                      "between two samples: CollisionOptions(substeps=k))")
@@ -709,6 +722,39 @@ def _working_model(geoms: list, meshes_as_convex: bool) -> tuple[pin.GeometryMod
         work.addGeometryObject(pin.GeometryObject(g.name, g.parentJoint, g.parentFrame,
                                                   g.placement, shape))
     return work, meshes
+
+
+def _meshes_apart(model: pin.Model, collision_model: pin.GeometryModel,
+                  pairs: list[tuple[int, int]], distances: np.ndarray, configs: np.ndarray,
+                  tol: float, hulls: set[int]) -> set[int]:
+    """The indices of the self-collision `pairs` with a body checked as its convex hull
+    (`hulls`) whose hulls overlap by more than `tol` somewhere and whose own shapes (coal's
+    mesh collision test, exact but unsigned) intersect at none of those samples: a hull
+    contains its mesh, so an overlap of hulls is a candidate, the meshes decide.
+    (solo12's base hull reaches over its upper legs near the hips: 1.9 mm in a jump whose
+    meshes stay apart.)"""
+    candidates = [j for j, (a, b) in enumerate(pairs)
+                  if (a in hulls or b in hulls) and np.min(distances[:, j]) < -tol]
+    if not candidates:
+        return set()
+    data, geom_data = model.createData(), collision_model.createData()
+    request = coal.CollisionRequest()
+    shapes = collision_model.geometryObjects
+    apart = set(candidates)
+    for k in np.unique(np.nonzero(distances[:, candidates] < -tol)[0]):
+        pin.updateGeometryPlacements(model, data, collision_model, geom_data, configs[k])
+        for j in [j for j in apart if distances[k, j] < -tol]:
+            a, b = pairs[j]
+            result = coal.CollisionResult()
+            placement_a, placement_b = geom_data.oMg[a], geom_data.oMg[b]
+            coal.collide(shapes[a].geometry, coal.Transform3s(placement_a.rotation,
+                                                              placement_a.translation),
+                         shapes[b].geometry, coal.Transform3s(placement_b.rotation,
+                                                              placement_b.translation),
+                         request, result)
+            if result.isCollision():
+                apart.discard(j)
+    return apart
 
 
 def _same_place(model: pin.Model, frame_a: int, frame_b: int) -> bool:
