@@ -3,12 +3,13 @@ task builds, checked against the URDF's own numbers and closed forms."""
 
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 import pytest
-from strider import write_strider
+from strider import STRIDER_TASK, write_strider
 
 from tfcontact.errors import InvalidInput
 from tfcontact.task import (
@@ -1128,3 +1129,80 @@ def test_a_task_sets_the_stance_resolves_elements(tmp_path):
         dataclasses.replace(task, exact_resolve=False, resolve_elements=2)
     with pytest.raises(InvalidInput, match="`resolve_elements` sets the stance re-solve"):
         dataclasses.replace(task, contacts=task.contacts[:1], resolve_elements=2)
+
+
+STRIDER_STEP = (STRIDER_TASK.replace("exact_resolve = true\n", "")
+                .replace("[goals]\n", "[goals]\nlift_offs = { toe0 = 1 }\nlift_height = 0.01\n")
+                + """
+[[stances]]
+closed = ["toe0", "toe1"]
+start = 0.0
+[[stances]]
+closed = ["toe1"]
+start = 0.1
+[[stances]]
+closed = ["toe0", "toe1"]
+start = 0.175
+""")
+
+
+def test_a_task_solves_along_a_contact_sequence_it_gives(tmp_path):
+    """`[[stances]]`: no discovery; the plan is solved exactly along the sequence given
+    (toe0 lifts at the control jump 0.1 s and lands inside 0.15-0.2 s), and the
+    multi-contact reference, simulating the robot with the plan's controls, agrees."""
+    import json
+
+    from tfcontact.plan_format import load_trajectory
+    from tfcontact.scenes.plans import run_plan
+
+    write_strider(tmp_path)
+    path = tmp_path / "step.toml"
+    path.write_text(STRIDER_STEP)
+    report = run_plan(path, tmp_path / "out", verbose=False)
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert report.status == "converged", summary["summary"]
+    assert [s["stage"] for s in summary["stages"]][:2] == ["stance solve", "collision check"]
+    trajectory = load_trajectory(tmp_path / "out" / "trajectory.npz")
+    assert trajectory.verification["passed"]
+    assert trajectory.task["passed"]  # toe0 rose above 1 cm
+    solver = trajectory.solver
+    assert "discovery" not in solver and solver["method"].startswith("exact solve along")
+    closed = [s["closed"] for s in solver["stances"]]
+    assert closed == [[0, 1], [1], [0, 1]]
+    landing = solver["stances"][2]["start"]
+    assert 0.15 < landing < 0.2
+    # toe0 is off the ground between its lift-off and its landing, on it before and after
+    t, gap = trajectory.clock, trajectory.gap[:, 0]
+    swing = (t > 0.1 + 1e-9) & (t < landing - 1e-9)
+    assert np.all(gap[swing] > 0) and gap[swing].max() > 0.01
+    assert np.all(np.abs(gap[(t < 0.1 - 1e-9) | (t > landing + 1e-9)]) < 1e-6)
+
+
+def test_a_contact_sequence_given_is_checked_before_solving():
+    """Bad `stances` are refused with the field and the fix named."""
+    import dataclasses
+
+    from tfcontact.task import StanceEntry, task_from_dict, task_stances
+
+    task = task_from_dict(tomllib.loads(STRIDER_STEP))
+    assert [(s.closed, s.start, s.end) for s in task_stances(task)] == [
+        ((0, 1), 0.0, 0.1), ((1,), 0.1, 0.175), ((0, 1), 0.175, 0.3)]
+    both, right = ("toe0", "toe1"), ("toe1",)
+    cases = {
+        "not contacts": [StanceEntry(both, 0.0), StanceEntry(("heel",), 0.1)],
+        "start at 0 s": [StanceEntry(both, 0.05), StanceEntry(right, 0.1)],
+        "not at a control jump": [StanceEntry(both, 0.0), StanceEntry(right, 0.12)],
+        "not neither": [StanceEntry(both, 0.0), StanceEntry(both, 0.1)],
+        "not both": [StanceEntry(("toe0",), 0.0), StanceEntry(right, 0.1)],
+    }
+    for match, stances in cases.items():
+        with pytest.raises(InvalidInput, match=match):
+            dataclasses.replace(task, stances=tuple(stances))
+    with pytest.raises(InvalidInput, match="remove `exact_resolve`"):
+        dataclasses.replace(task, exact_resolve=True)
+    with pytest.raises(InvalidInput, match="distinct contact frames"):
+        StanceEntry("toe0", 0.0)
+    with pytest.raises(InvalidInput, match=r"stances\[0\]` has unknown keys"):
+        task_from_dict({**tomllib.loads(STRIDER_STEP),
+                        "stances": [{"closed": [], "start": 0.0, "end": 0.1}]})
+

@@ -4,6 +4,7 @@ gets the outcome of the stage before and returns its own (`PlanOutcome`); `run_p
 
 Stages: `Discover` finds the contact sequence with the time-freezing homotopy;
 `StanceResolve` re-solves a plan with several contacts exactly along the stances found;
+`GivenStances` solves one along a contact sequence given as data, without a discovery;
 `ExactResolve` re-solves along a contact sequence exactly, level after level
 (`tfcontact.ocp.chain`), from where its `ResolveStart` says (`FoundSequence`: the
 discovery's sequence; `PreviousPlan`: the exact plan before; a scene's own rule, e.g. the
@@ -27,7 +28,13 @@ from tfcontact.errors import InvalidInput, positive_int
 from tfcontact.ocp.chain import ChainStep, ResolveChain, ResolveLevel, resolve_chain
 from tfcontact.ocp.goals import Goal, LiftOffs
 from tfcontact.ocp.polish import Phase, PolishedPlan, PolishOptions, contact_phases
-from tfcontact.ocp.stances import StanceOptions, resolve_stances, schedule_of
+from tfcontact.ocp.stances import (
+    Stance,
+    StanceOptions,
+    StancePlan,
+    resolve_stances,
+    schedule_of,
+)
 
 if TYPE_CHECKING:
     from tfcontact.ocp.contact import ContactProblem, ContactResult, ContactSolverOptions
@@ -376,9 +383,6 @@ class StanceResolve(Stage):
     tasks: tuple[str, ...] | None = None
 
     def run(self, given: StageInput) -> PlanOutcome:
-        from tfcontact.ocp.goals import Motion, check_goals
-        from tfcontact.plan_format import terrain_directions, trajectory_from_stances
-
         result = discovered(given)
         found = given.previous
         setup = found.setup
@@ -402,34 +406,110 @@ class StanceResolve(Stage):
         if not options.swing_heights:
             options = dataclasses.replace(
                 options, swing_heights=lift_off_heights(problem.goals, cls.n_contacts))
-        solved = problem if self.path_rows is None or problem.path is None else (
-            dataclasses.replace(problem, path=problem.path.rows(self.path_rows)))
-        plan = resolve_stances(solved, stances, options, guess=result, verbose=given.verbose)
-        gaps = np.asarray(cls.function("gaps")(plan.x[:, :cls.n_q].T)).T
-        task = check_goals(problem.goals, Motion(t=plan.t, q=plan.x[:, :cls.n_q],
-                                                 gaps=gaps.reshape(len(plan.t), -1),
-                                                 names=cls.q_names))
-        status = plan.status if not plan.success else (
-            "converged" if task.passed else task.status)
-        summary = (f"discovery: {result.status}\n{plan.summary()}\n{task.summary()}")
-        solver = {"status": status, "objective": plan.cost, "wall_time": plan.solve_time,
-                  "ipopt_status": plan.ipopt_status, "iterations": plan.iterations,
-                  "stances": [dataclasses.asdict(s) for s in plan.stances],
-                  "timing": None if plan.timing is None else dataclasses.asdict(plan.timing),
-                  "method": "exact re-solve along the stances (tfcontact.ocp.stances): "
-                            + ("Radau IIA collocation" if options.integrator == "radau"
-                               else "RK4 multiple shooting")
-                            + (", inverse-dynamics form" if options.inverse_dynamics else "")
-                            + " on the fixed control grid",
-                  "discovery": {"status": result.status, "objective": result.ocp.cost,
-                                "iterations": result.ocp.total_iterations}}
-        directions = (None if setup.terrain is None
-                      else terrain_directions(setup.robot, setup.terrain))
-        trajectory = trajectory_from_stances(plan, cls, setup.robot.spec, setup.scene,
-                                             directions=directions, solver=solver,
-                                             task=task.to_dict())
-        return PlanOutcome(trajectory, setup.robot, status, plan.success and task.passed,
-                           summary, task=task.to_dict(), setup=setup)
+        plan = resolve_stances(kept_path_rows(problem, self.path_rows), stances, options,
+                               guess=result, verbose=given.verbose)
+        return stance_outcome(plan, setup, options, discovery=result)
+
+
+def kept_path_rows(problem: ContactProblem, rows: tuple[int, ...] | None) -> ContactProblem:
+    """`problem` with only the path rows `rows` (None: all)."""
+    return problem if rows is None or problem.path is None else (
+        dataclasses.replace(problem, path=problem.path.rows(rows)))
+
+
+def stance_outcome(plan: StancePlan, setup: PlanSetup, options: StanceOptions,
+                   discovery: ContactResult | None = None) -> PlanOutcome:
+    """The outcome of a plan solved along stances: its trajectory, the goals measured at
+    its nodes, the status and summary (`discovery`: the relaxed plan whose stances it
+    followed, None for a sequence given as data)."""
+    from tfcontact.ocp.goals import Motion, check_goals
+    from tfcontact.plan_format import terrain_directions, trajectory_from_stances
+
+    problem = setup.problem
+    cls = problem.system.cls
+    gaps = np.asarray(cls.function("gaps")(plan.x[:, :cls.n_q].T)).T
+    task = check_goals(problem.goals, Motion(t=plan.t, q=plan.x[:, :cls.n_q],
+                                             gaps=gaps.reshape(len(plan.t), -1),
+                                             names=cls.q_names))
+    status = plan.status if not plan.success else (
+        "converged" if task.passed else task.status)
+    found = ("the contact sequence given" if discovery is None
+             else f"discovery: {discovery.status}")
+    summary = f"{found}\n{plan.summary()}\n{task.summary()}"
+    solver = {"status": status, "objective": plan.cost, "wall_time": plan.solve_time,
+              "ipopt_status": plan.ipopt_status, "iterations": plan.iterations,
+              "stances": [dataclasses.asdict(s) for s in plan.stances],
+              "timing": None if plan.timing is None else dataclasses.asdict(plan.timing),
+              "method": ("exact re-solve" if discovery is not None else "exact solve")
+                        + " along the stances (tfcontact.ocp.stances): "
+                        + ("Radau IIA collocation" if options.integrator == "radau"
+                           else "RK4 multiple shooting")
+                        + (", inverse-dynamics form" if options.inverse_dynamics else "")
+                        + " on the fixed control grid"}
+    if discovery is not None:
+        solver["discovery"] = {"status": discovery.status, "objective": discovery.ocp.cost,
+                               "iterations": discovery.ocp.total_iterations}
+    directions = (None if setup.terrain is None
+                  else terrain_directions(setup.robot, setup.terrain))
+    trajectory = trajectory_from_stances(plan, cls, setup.robot.spec, setup.scene,
+                                         directions=directions, solver=solver,
+                                         task=task.to_dict())
+    return PlanOutcome(trajectory, setup.robot, status, plan.success and task.passed,
+                       summary, task=task.to_dict(), setup=setup)
+
+
+@dataclass(frozen=True)
+class GivenStances(Stage):
+    """Solve a plan with contacts exactly along a contact sequence given as data (no
+    discovery; `tfcontact.ocp.stances`: each closed contact sticking, touchdowns at free
+    times inside their control intervals with their impacts, lift-offs at control jumps),
+    verified with the multi-contact reference, the goals checked at its nodes.
+
+    The guess: the problem's own (`ContactProblem.guess`, e.g. a task's reference; else
+    the start state everywhere) at the control jumps, its control guess (else zero).
+
+    Args:
+        build: the setup of a task (as `Discover`'s).
+        stances: the sequence (`tfcontact.ocp.Stance`s; `tfcontact.task.task_stances`).
+        options: `StanceOptions` (default: its defaults); without `swing_heights` the
+            problem's lift-off goals give them (`lift_off_heights`).
+        path_rows: as `StanceResolve`'s.
+    """
+
+    build: Callable[[str | None], PlanSetup]
+    stances: tuple[Stance, ...]
+    options: StanceOptions | None = None
+    path_rows: tuple[int, ...] | None = None
+    name: str = "stance solve"
+    tasks: tuple[str, ...] | None = None
+
+    @property
+    def own_setup(self) -> bool:
+        return True
+
+    def run(self, given: StageInput) -> PlanOutcome:
+        setup = self.build(given.task)
+        problem = setup.problem
+        n_q, n_u = problem.system.cls.n_q, problem.system.cls.n_u
+        n_int = problem.n_intervals
+        if given.verbose:
+            print(f"plan {given.plan} ({given.task}): {setup.robot.model.name}, nq = "
+                  f"{setup.robot.nq}, T = {problem.horizon} s, N = {n_int}, "
+                  f"{len(self.stances)} stances given", flush=True)
+        start = np.concatenate([problem.q0, problem.v0])
+        states = (np.tile(start, (n_int + 1, 1)) if problem.guess is None
+                  else np.asarray(problem.guess, dtype=float).reshape(n_int + 1, 2 * n_q))
+        controls = (np.zeros((n_int, n_u)) if problem.control_guess is None
+                    else np.broadcast_to(np.asarray(problem.control_guess, dtype=float),
+                                         (n_int, n_u)).copy())
+        options = self.options or StanceOptions()
+        if not options.swing_heights:
+            options = dataclasses.replace(options, swing_heights=lift_off_heights(
+                problem.goals, problem.system.cls.n_contacts))
+        guess = (np.linspace(0.0, problem.horizon, n_int + 1), states, controls)
+        plan = resolve_stances(kept_path_rows(problem, self.path_rows), self.stances,
+                               options, guess=guess, verbose=given.verbose)
+        return stance_outcome(plan, setup, options)
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ from tfcontact.scenes import monoped_exact
 from tfcontact.scenes.pipeline import (
     Discover,
     ExactResolve,
+    GivenStances,
     Plan,
     PlanOutcome,
     PlanSetup,
@@ -108,6 +109,7 @@ def task_plan(source: str | Path) -> Plan:
         resolve_path_rows,
         shipped_tasks,
         solver_options,
+        task_stances,
     )
 
     shipped = shipped_tasks()
@@ -120,7 +122,7 @@ def task_plan(source: str | Path) -> Plan:
     # where the no-slip rows hold by construction (an open no-slip contact keeps
     # v_t^2 <= K gap: it does not skim the ground) and the reach rows are kept
     gains = tuple(c.no_slip_gain if c.no_slip else None for c in data.contacts)
-    resolve = (ExactResolve() if len(data.contacts) == 1 else StanceResolve(
+    resolve = (ExactResolve() if len(data.contacts) == 1 and not data.stances else StanceResolve(
         StanceOptions(open_slip_gains=gains,
                       nodes=data.resolve_elements or StanceOptions.nodes, **data.resolve),
         path_rows=resolve_path_rows(data)))
@@ -151,6 +153,10 @@ def task_plan(source: str | Path) -> Plan:
                          start_ranges=dict(data.start_ranges) or None,
                          from_start=from_start)
 
+    if data.stances:  # the sequence is given: solved along it, no discovery
+        return Plan(name=data.name, summary=data.description or f"task file {path}",
+                    tasks=("task",), stages=(GivenStances(
+                        build, task_stances(data), resolve.options, resolve.path_rows),))
     if not data.exact_resolve:
         return Plan(name=data.name, summary=data.description or f"task file {path}",
                     tasks=("task",), stages=(Discover(build),))

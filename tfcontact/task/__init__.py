@@ -13,6 +13,7 @@ from tfcontact.task.build import (
     resolve_path_rows,
     solver_options,
     task_region,
+    task_stances,
 )
 from tfcontact.task.files import (
     SHIPPED,
@@ -30,6 +31,7 @@ from tfcontact.task.spec import (
     PlaneTerrain,
     PrimitiveTerrain,
     RobotEntry,
+    StanceEntry,
     Task,
     Waypoint,
 )
@@ -43,6 +45,7 @@ __all__ = [
     "PlaneTerrain",
     "PrimitiveTerrain",
     "RobotEntry",
+    "StanceEntry",
     "Task",
     "TaskSetup",
     "Waypoint",
@@ -56,5 +59,6 @@ __all__ = [
     "shipped_tasks",
     "task_from_dict",
     "task_region",
+    "task_stances",
     "terrain_from_dict",
 ]

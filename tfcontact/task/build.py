@@ -20,6 +20,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from tfcontact.errors import IncompatibleOptions, InvalidInput
+from tfcontact.ocp.stances import Stance
 from tfcontact.robot.terrain import Region, Terrain
 from tfcontact.task.spec import PlaneTerrain, Task
 
@@ -240,6 +241,16 @@ def resolve_path_rows(task: Task) -> tuple[int, ...]:
     rows before them (no-slip, clearance) steer the discovery only."""
     steering = sum(int(c.no_slip) + int(c.clearance is not None) for c in task.contacts)
     return tuple(range(steering, steering + sum(len(c.reach) for c in task.contacts)))
+
+
+def task_stances(task: Task) -> tuple[Stance, ...]:
+    """The task's given contact sequence (`Task.stances`) as `tfcontact.ocp.Stance`s:
+    its contacts by index in `task.contacts`, each stance until the next one's start or
+    the horizon (empty: none given)."""
+    frames = [c.frame for c in task.contacts]
+    ends = [s.start for s in task.stances[1:]] + [task.horizon]
+    return tuple(Stance(tuple(sorted(frames.index(f) for f in s.closed)), s.start, end)
+                 for s, end in zip(task.stances, ends, strict=True))
 
 
 def contact_reach(robot: Any, frame: str) -> float:

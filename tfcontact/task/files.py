@@ -22,6 +22,16 @@ tfcontact (`shipped_tasks`).
 
 A relative URDF path is read relative to the task file's folder first.
 
+A known contact sequence replaces the discovery (`Task.stances`): each stance names the
+contacts down from its start until the next one's,
+
+    [[stances]]
+    closed = ["left_foot", "right_foot"]
+    start = 0.0
+    [[stances]]
+    closed = ["right_foot"]       # the left foot lifts at this control jump
+    start = 0.2
+
 The terrain is one plane (`[terrain]` with `height` and `normal`, default flat at 0) or
 primitives (`tfcontact.robot.Terrain`), each with the fields of its robot-layer class
 (ranges as [lo, hi], `inf` for an open end, y omitted in a planar scene):
@@ -60,6 +70,7 @@ from tfcontact.task.spec import (
     PlaneTerrain,
     PrimitiveTerrain,
     RobotEntry,
+    StanceEntry,
     Task,
     Waypoint,
 )
@@ -72,7 +83,7 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "guess", "a_n", "gap_scale", "exact_resolve",
         "complementarity_tolerance", "finite_elements", "friction_model", "periodic",
         "period", "period_from", "barrier", "resolve_elements", "resolve",
-        "start_ranges", "attempts"}
+        "start_ranges", "attempts", "stances"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "clearance", "clearance_speed",
@@ -137,6 +148,10 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
                                "coordinates, e.g. t = 0.5, z = 0.8")
         parsed_waypoints.append(Waypoint(w["t"], {n: v for n, v in w.items() if n != "t"}))
     actuated = top.get("actuated")
+    stances = top.get("stances", [])
+    if not isinstance(stances, list):
+        raise InvalidInput("`stances` must be an array of tables: [[stances]] with closed "
+                           "and start")
     return Task(
         name=top["name"], description=top.get("description", ""),
         robot=RobotEntry(source=source, base=robot.get("base", "fixed"),
@@ -166,6 +181,9 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         barrier=top.get("barrier"),
         periodic=_listed(top.get("periodic", ()), "periodic"),
         period=top.get("period"), period_from=top.get("period_from", 0.0),
+        stances=tuple(StanceEntry(**_table(e, f"stances[{k}]", {"closed", "start"},
+                                           ("closed", "start")))
+                      for k, e in enumerate(stances)),
     )
 
 

@@ -9,6 +9,7 @@ TOML file: `contacts[1].radius`) and the fix.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -276,6 +277,26 @@ class Waypoint:
 
 
 @dataclass(frozen=True)
+class StanceEntry:
+    """One stance of a contact sequence given as data (`Task.stances`): the contacts
+    `closed` from `start` [s] (their frames; empty: flight) until the next stance's start
+    or the horizon."""
+
+    closed: tuple[str, ...]
+    start: float
+
+    def __post_init__(self) -> None:
+        closed = self.closed
+        if isinstance(closed, str) or not isinstance(closed, list | tuple) or not all(
+                isinstance(f, str) and f for f in closed) or len(set(closed)) != len(closed):
+            raise InvalidInput(f"`stances[].closed` must list distinct contact frames, e.g. "
+                               f"[\"FL_FOOT\", \"FR_FOOT\"] ([] for flight), got {closed!r}")
+        object.__setattr__(self, "closed", tuple(closed))
+        object.__setattr__(self, "start", finite(self.start, "stances[].start", low=0.0,
+                                                 unit="s"))
+
+
+@dataclass(frozen=True)
 class Goals:
     """What the plan must do, checked on its physical motion (`tfcontact.ocp.goals`).
 
@@ -449,6 +470,15 @@ class Task:
             checks: the discovery's relaxed plan is not the plan, and its own verdict
             cannot decide. Measured on biped-walk-short's perturbed starts
             (benchmarks/sweeps).
+        stances: a contact sequence given as data (`StanceEntry`s, `[[stances]]` in a
+            file): no discovery; the plan is solved exactly along it
+            (`tfcontact.ocp.stances`, each closed contact sticking, verified with the
+            multi-contact reference) from the task's `guess`, with the `[resolve]`
+            settings. The first stance starts at 0; each next one either closes contacts
+            (a touchdown, at a free time inside the control interval its start lies in)
+            or opens them (a lift-off, at its start, a control jump k T / N). For a robot
+            whose gait is known, and to measure what a discovery costs against the same
+            plan with its sequence fixed.
         description: a line for `tfcontact plan --list`.
     """
 
@@ -481,6 +511,7 @@ class Task:
     resolve_elements: int | None = None
     resolve: Mapping[str, Any] = field(default_factory=dict)
     attempts: int | None = None
+    stances: tuple[StanceEntry, ...] = ()
     description: str = ""
 
     def __post_init__(self) -> None:
@@ -578,13 +609,53 @@ class Task:
             raise InvalidInput(f"`resolve` has unknown keys {unknown}; its keys: "
                                f"{', '.join(sorted(RESOLVE_SETTINGS))}")
         StanceOptions(**self.resolve)  # its checks name the setting
+        self._check_stances(frames)
         for name in ("resolve_elements", "resolve"):
-            if getattr(self, name) and (not self.exact_resolve or len(self.contacts) < 2):
+            if getattr(self, name) and not self.stances and (
+                    not self.exact_resolve or len(self.contacts) < 2):
                 raise InvalidInput(
                     f"`{name}` sets the stance re-solve, which runs with "
-                    "`exact_resolve = true` and several contacts; remove it or set both")
+                    "`exact_resolve = true` and several contacts, or along given "
+                    "`stances`; remove it or set those")
         object.__setattr__(self, "resolve", _frozen(dict(self.resolve)))
         if self.attempts is not None:
             object.__setattr__(self, "attempts", positive_int(self.attempts, "attempts"))
         if not isinstance(self.description, str):
             raise InvalidInput("`description` must be a string")
+
+    def _check_stances(self, frames: list[str]) -> None:
+        stances = tuple(self.stances)
+        if not all(isinstance(s, StanceEntry) for s in stances):
+            raise InvalidInput("`stances` must be StanceEntry's ([[stances]] with closed and "
+                               "start)")
+        object.__setattr__(self, "stances", stances)
+        if not stances:
+            return
+        if self.exact_resolve:
+            raise InvalidInput("`stances` gives the contact sequence, so there is no "
+                               "discovery to re-solve: remove `exact_resolve`")
+        starts = [s.start for s in stances]
+        if starts[0] != 0.0 or starts != sorted(set(starts)) or starts[-1] >= self.horizon:
+            raise InvalidInput(f"`stances` must start at 0 s and their starts increase "
+                               f"within the horizon [0, {self.horizon:g}) s, got {starts}")
+        step = self.horizon / self.n_intervals
+        for s in stances:
+            unknown = sorted(set(s.closed) - set(frames))
+            if unknown:
+                raise InvalidInput(f"the stance at {s.start:g} s closes {unknown}, which are "
+                                   f"not contacts; the contacts: {frames}")
+        for before, after in itertools.pairwise(stances):
+            closes = set(after.closed) - set(before.closed)
+            opens = set(before.closed) - set(after.closed)
+            if bool(closes) == bool(opens):
+                raise InvalidInput(
+                    f"the stance at {after.start:g} s must either close contacts (a "
+                    f"touchdown) or open them (a lift-off), not "
+                    f"{'both' if closes else 'neither'}: {list(before.closed)} -> "
+                    f"{list(after.closed)}; put one change after the other")
+            k = round(after.start / step)
+            if opens and abs(after.start - k * step) > 1e-9 * self.horizon:
+                raise InvalidInput(
+                    f"the lift-off of {sorted(opens)} at {after.start:g} s is not at a "
+                    f"control jump k T / N (T / N = {step:g} s): move it to one, e.g. "
+                    f"{k * step:g} s")
