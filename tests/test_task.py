@@ -1206,3 +1206,47 @@ def test_a_contact_sequence_given_is_checked_before_solving():
         task_from_dict({**tomllib.loads(STRIDER_STEP),
                         "stances": [{"closed": [], "start": 0.0, "end": 0.1}]})
 
+
+def test_a_standing_starts_kick_is_taken_by_its_contacts(monkeypatch, tmp_path):
+    """The end-state check's kicked replays (`end_state_check`) start from the kicked
+    state as the contacts down at the start take it: a kick M^-1 J w that lifts both
+    standing toes off the ground moves nothing (the inelastic impact leaving them at rest
+    removes it exactly), where the reference would otherwise fly the robot and land it
+    again."""
+    import casadi as ca
+
+    import tfcontact.ocp.stances as stances
+    from tfcontact.scenes.pipeline import kept_path_rows
+    from tfcontact.task import resolve_path_rows, task_stances
+
+    write_strider(tmp_path)
+    task = task_from_dict(tomllib.loads(STRIDER_STEP), tmp_path)
+    problem = build_task(task).problem
+    captured = {}
+
+    def capture(plan, tolerance, deviation, defects, reference_end, notes, replay_end):
+        captured.update(x0=plan.x0, u=plan.controls, replay_end=replay_end)
+        return True, 0.0, float("nan")
+
+    monkeypatch.setattr(stances, "end_state_check", capture)
+    n, cls = problem.n_intervals, problem.system.cls
+    x0 = np.concatenate([problem.q0, problem.v0])
+    stances.resolve_stances(
+        kept_path_rows(problem, resolve_path_rows(task)), task_stances(task),
+        stances.StanceOptions(), verbose=False,
+        guess=(np.linspace(0, problem.horizon, n + 1), np.tile(x0, (n + 1, 1)),
+               np.zeros((n, cls.n_u))))
+    x0, replay_end = captured["x0"], captured["replay_end"]
+    columns = ca.horzcat(*[ca.horzcat(c.normal, c.tangents) for c in cls.contacts])
+    lift = ca.Function("lift", [cls.q], [cls.solve_mass(columns @ ca.DM([1e-3, 0, 1e-3, 0]))])
+    kicked = x0.copy()
+    kicked[cls.n_q:] += np.asarray(lift(x0[:cls.n_q])).ravel()
+    normals = ca.Function("vn", [cls.q, cls.v], [columns.T @ cls.v])
+    assert np.asarray(normals(kicked[:cls.n_q], kicked[cls.n_q:])).ravel()[[0, 2]].min() > 0
+    np.testing.assert_allclose(replay_end(kicked), replay_end(x0), atol=1e-9)
+    # the same kick from the reference's own start: the toes lift, the end moves
+    unsettled = stances.replay_multicontact(cls, kicked, np.linspace(0, problem.horizon,
+                                                                     n + 1),
+                                            captured["u"], problem.horizon)
+    assert len(unsettled.impacts) >= 1
+
