@@ -1250,3 +1250,48 @@ def test_a_standing_starts_kick_is_taken_by_its_contacts(monkeypatch, tmp_path):
                                             captured["u"], problem.horizon)
     assert len(unsettled.impacts) >= 1
 
+
+@pytest.mark.slow
+def test_solo12_jumps_along_its_given_contact_sequence_verified_and_clear(tmp_path):
+    """`tfcontact plan quadruped-jump-schedule` (measured 2-3 minutes): solo12, floating
+    base, four 3-D frictional feet, along all down / flight / all landing: verified by the
+    multi-contact reference, its task done, clear of the ground and itself. Checked here
+    on Pinocchio's foot placements and centre of mass: all four feet off the ground
+    together for 0.1 s, down at both ends, and the push-off's forces carrying the
+    robot's weight and its change of momentum."""
+    import json
+
+    import pinocchio as pin
+
+    from tfcontact.cli import main
+    from tfcontact.plan_format import load_trajectory
+    from tfcontact.robot import RobotSpec, load_robot
+
+    assert main(["plan", "quadruped-jump-schedule", "--out", str(tmp_path), "--quiet"]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["success"] and summary["status"] == "converged", summary["summary"]
+    stages = {entry["stage"]: entry for entry in summary["stages"]}
+    assert stages["stance solve"]["status"] == "converged" and "discover" not in stages
+    assert stages["collision check"]["status"] == "clear"
+    trajectory = load_trajectory(tmp_path / "trajectory.npz")
+    assert trajectory.verification["passed"]
+    model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
+    data = model.createData()
+    feet = [model.getFrameId(f"{leg}_FOOT") for leg in ("FL", "FR", "HL", "HR")]
+    heights, momentum = [], []
+    for q, v in zip(trajectory.q, trajectory.v, strict=True):
+        pin.framesForwardKinematics(model, data, q)
+        heights.append([data.oMf[f].translation[2] - 0.016 for f in feet])
+        pin.centerOfMass(model, data, q, v)
+        momentum.append(pin.computeTotalMass(model) * data.vcom[0][2])
+    heights, momentum, t = np.array(heights), np.array(momentum), trajectory.clock
+    assert np.all(np.abs(heights[0]) < 1e-4) and np.all(np.abs(heights[-1]) < 1e-4)
+    flying = np.all(heights > 0.01, axis=1)
+    assert t[flying].max() - t[flying].min() >= 0.1
+    assert np.all(np.diff(t[flying]) < 0.03)  # one flight, not two short ones
+    assert abs(trajectory.q[-1, 0] - 0.2) <= 0.05
+    push = t <= 0.2 + 1e-9
+    impulse = np.trapezoid(trajectory.force[push].sum(axis=1)[:, 2], t[push])
+    weight = pin.computeTotalMass(model) * 9.81
+    last = int(np.flatnonzero(push)[-1])
+    assert impulse == pytest.approx(weight * t[last] + momentum[last] - momentum[0], rel=2e-2)
