@@ -402,13 +402,19 @@ class StanceResolve(Stage):
                   + ", ".join(f"{list(s.closed)} from {s.start:.3f} s" for s in stances),
                   flush=True)
         problem = setup.problem
-        cls = problem.system.cls
-        if not options.swing_heights:
-            options = dataclasses.replace(
-                options, swing_heights=lift_off_heights(problem.goals, cls.n_contacts))
+        options = with_lift_off_heights(options, problem)
         plan = resolve_stances(kept_path_rows(problem, self.path_rows), stances, options,
                                guess=result, verbose=given.verbose)
         return stance_outcome(plan, setup, options, discovery=result)
+
+
+def with_lift_off_heights(options: StanceOptions, problem: ContactProblem) -> StanceOptions:
+    """`options`, its `swing_heights` from the problem's lift-off goals where it has none
+    (`lift_off_heights`)."""
+    if options.swing_heights:
+        return options
+    return dataclasses.replace(options, swing_heights=lift_off_heights(
+        problem.goals, problem.system.cls.n_contacts))
 
 
 def kept_path_rows(problem: ContactProblem, rows: tuple[int, ...] | None) -> ContactProblem:
@@ -470,7 +476,7 @@ class GivenStances(Stage):
 
     Args:
         build: the setup of a task (as `Discover`'s).
-        stances: the sequence (`tfcontact.ocp.Stance`s; `tfcontact.task.task_stances`).
+        stances: the sequence (`tfcontact.ocp.stances.Stance`s; `tfcontact.task.task_stances`).
         options: `StanceOptions` (default: its defaults); without `swing_heights` the
             problem's lift-off goals give them (`lift_off_heights`).
         path_rows: as `StanceResolve`'s.
@@ -502,10 +508,7 @@ class GivenStances(Stage):
         controls = (np.zeros((n_int, n_u)) if problem.control_guess is None
                     else np.broadcast_to(np.asarray(problem.control_guess, dtype=float),
                                          (n_int, n_u)).copy())
-        options = self.options or StanceOptions()
-        if not options.swing_heights:
-            options = dataclasses.replace(options, swing_heights=lift_off_heights(
-                problem.goals, problem.system.cls.n_contacts))
+        options = with_lift_off_heights(self.options or StanceOptions(), problem)
         guess = (np.linspace(0.0, problem.horizon, n_int + 1), states, controls)
         plan = resolve_stances(kept_path_rows(problem, self.path_rows), self.stances,
                                options, guess=guess, verbose=given.verbose)

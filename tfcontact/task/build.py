@@ -244,7 +244,7 @@ def resolve_path_rows(task: Task) -> tuple[int, ...]:
 
 
 def task_stances(task: Task) -> tuple[Stance, ...]:
-    """The task's given contact sequence (`Task.stances`) as `tfcontact.ocp.Stance`s:
+    """The task's given contact sequence (`Task.stances`) as `tfcontact.ocp.stances.Stance`s:
     its contacts by index in `task.contacts`, each stance until the next one's start or
     the horizon (empty: none given)."""
     frames = [c.frame for c in task.contacts]
