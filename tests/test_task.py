@@ -1253,7 +1253,7 @@ def test_a_standing_starts_kick_is_taken_by_its_contacts(monkeypatch, tmp_path):
 
 @pytest.mark.slow
 def test_solo12_jumps_along_its_given_contact_sequence_verified_and_clear(tmp_path):
-    """`tfcontact plan quadruped-jump-schedule` (measured 2-3 minutes): solo12, floating
+    """`tfcontact plan quadruped-jump-schedule` (measured 3-5 minutes): solo12, floating
     base, four 3-D frictional feet, along all down / flight / all landing: verified by the
     multi-contact reference, its task done, clear of the ground and itself. Checked here
     on Pinocchio's foot placements and centre of mass: all four feet off the ground
