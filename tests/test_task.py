@@ -1295,3 +1295,38 @@ def test_solo12_jumps_along_its_given_contact_sequence_verified_and_clear(tmp_pa
     weight = pin.computeTotalMass(model) * 9.81
     last = int(np.flatnonzero(push)[-1])
     assert impulse == pytest.approx(weight * t[last] + momentum[last] - momentum[0], rel=2e-2)
+
+
+
+def test_ties_make_coordinates_follow_others_in_the_discovery_only(tmp_path):
+    """`ties`: rows q_a - s q_b = 0 and v_a - s v_b = 0 after the reach rows (s = -1 for
+    "-b"), evaluated here on random states; the stance re-solve drops them; a start that
+    breaks a tie, an unknown name and a self-tie are refused."""
+    import dataclasses
+
+    from tfcontact.task import resolve_path_rows
+
+    write_strider(tmp_path)
+    plain = task_from_dict(tomllib.loads(STRIDER_TASK), tmp_path)
+    task = dataclasses.replace(plain, ties={"hip1": "hip0", "leg1": "-leg0"},
+                               start={**plain.start, "leg1": -0.25})
+    with pytest.raises(InvalidInput, match="the start breaks `ties.leg1"):
+        build_task(dataclasses.replace(task, ties={"leg1": "leg0"}))
+    problem = build_task(task).problem
+    cls = problem.system.cls
+    names = list(cls.q_names)
+    rows = ca.Function("rows", [cls.q, cls.v], [problem.path.expression])
+    rng = np.random.default_rng(3)
+    q, v = rng.normal(size=cls.n_q), rng.normal(size=cls.n_q)
+    values = np.asarray(rows(q, v)).ravel()
+    hip0, hip1, leg0, leg1 = (names.index(n) for n in ("hip0", "hip1", "leg0", "leg1"))
+    steering = 2  # the two no-slip rows come first
+    np.testing.assert_allclose(values[steering:], [q[hip1] - q[hip0], v[hip1] - v[hip0],
+                                                   q[leg1] + q[leg0], v[leg1] + v[leg0]])
+    np.testing.assert_array_equal(problem.path.lower[steering:], 0.0)
+    np.testing.assert_array_equal(problem.path.upper[steering:], 0.0)
+    assert resolve_path_rows(task) == ()
+    with pytest.raises(InvalidInput, match="`ties` names \\['knee'\\]"):
+        build_task(dataclasses.replace(task, ties={"knee": "hip0"}))
+    with pytest.raises(InvalidInput, match="must name another coordinate"):
+        dataclasses.replace(task, ties={"hip0": "-hip0"})

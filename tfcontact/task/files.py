@@ -83,7 +83,7 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "guess", "a_n", "gap_scale", "exact_resolve",
         "complementarity_tolerance", "finite_elements", "friction_model", "periodic",
         "period", "period_from", "barrier", "resolve_elements", "resolve",
-        "start_ranges", "attempts", "stances"}
+        "start_ranges", "attempts", "stances", "ties"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "clearance", "clearance_speed",
@@ -181,6 +181,7 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         barrier=top.get("barrier"),
         periodic=_listed(top.get("periodic", ()), "periodic"),
         period=top.get("period"), period_from=top.get("period_from", 0.0),
+        ties=top.get("ties", {}),
         stances=tuple(StanceEntry(**_table(e, f"stances[{k}]", {"closed", "start"},
                                            ("closed", "start")))
                       for k, e in enumerate(stances)),

@@ -479,6 +479,12 @@ class Task:
             or opens them (a lift-off, at its start, a control jump k T / N). For a robot
             whose gait is known, and to measure what a discovery costs against the same
             plan with its sequence fixed.
+        ties: {coordinate: other}: the coordinate follows the other one at every stage of
+            the discovery, position and velocity ("-other": mirrored, the negative), e.g.
+            a quadruped's right legs tied to its left ones for a symmetric gait. They
+            steer the discovery only (like no-slip): the stance re-solve keeps the
+            stances found, not the ties (a closed foot's contact rows would repeat its
+            twin's).
         description: a line for `tfcontact plan --list`.
     """
 
@@ -512,6 +518,7 @@ class Task:
     resolve: Mapping[str, Any] = field(default_factory=dict)
     attempts: int | None = None
     stances: tuple[StanceEntry, ...] = ()
+    ties: Mapping[str, str] = field(default_factory=dict)
     description: str = ""
 
     def __post_init__(self) -> None:
@@ -610,6 +617,12 @@ class Task:
                                f"{', '.join(sorted(RESOLVE_SETTINGS))}")
         StanceOptions(**self.resolve)  # its checks name the setting
         self._check_stances(frames)
+        ties = _names(self.ties, "ties")
+        for name, other in ties.items():
+            if not isinstance(other, str) or other.lstrip("-") in ("", name):
+                raise InvalidInput(f"`ties.{name}` must name another coordinate (\"-name\" "
+                                   f"mirrored), got {other!r}")
+        object.__setattr__(self, "ties", _frozen(ties))
         for name in ("resolve_elements", "resolve"):
             if getattr(self, name) and not self.stances and (
                     not self.exact_resolve or len(self.contacts) < 2):
