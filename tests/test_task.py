@@ -1330,3 +1330,5 @@ def test_ties_make_coordinates_follow_others_in_the_discovery_only(tmp_path):
         build_task(dataclasses.replace(task, ties={"knee": "hip0"}))
     with pytest.raises(InvalidInput, match="must name another coordinate"):
         dataclasses.replace(task, ties={"hip0": "-hip0"})
+    with pytest.raises(InvalidInput, match="`ties` names \\['-hip0'\\]"):
+        build_task(dataclasses.replace(task, ties={"hip1": "--hip0"}))

@@ -176,11 +176,11 @@ def build_task(task: Task) -> TaskSetup:
     # ties after the reach rows: they steer the discovery only (`resolve_path_rows`)
     for name, other in task.ties.items():
         sign = -1.0 if other.startswith("-") else 1.0
-        i, j = names.index(name), names.index(other.lstrip("-"))
+        i, j = names.index(name), names.index(other.removeprefix("-"))
         n = len(names)
         if max(abs(x0[i] - sign * x0[j]), abs(x0[n + i] - sign * x0[n + j])) > 1e-9:
             raise InvalidInput(f"the start breaks `ties.{name} = {other!r}` ({name} = "
-                               f"{x0[i]:g}, {other.lstrip('-')} = {x0[j]:g}, velocities "
+                               f"{x0[i]:g}, {other.removeprefix('-')} = {x0[j]:g}, velocities "
                                f"{x0[n + i]:g}, {x0[n + j]:g}); start them tied")
         rows += [cls.q[i] - sign * cls.q[j], cls.v[i] - sign * cls.v[j]]
         row_lower += [0.0, 0.0]
@@ -365,7 +365,7 @@ def _check_names(task: Task, state_names: list[str], frames: list[str]) -> None:
               ("goals.lift_offs", task.goals.lift_offs, frames),
               ("goals.end_height", task.goals.end_height, frames),
               ("periodic", dict.fromkeys(task.periodic), state_names),
-              ("ties", {**task.ties, **{v.lstrip("-"): v for v in task.ties.values()}},
+              ("ties", {**task.ties, **{v.removeprefix("-"): v for v in task.ties.values()}},
                coordinates)]
     for where, mapping, allowed in fields:
         unknown = [k for k in mapping if k not in allowed]

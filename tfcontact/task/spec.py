@@ -619,7 +619,7 @@ class Task:
         self._check_stances(frames)
         ties = _names(self.ties, "ties")
         for name, other in ties.items():
-            if not isinstance(other, str) or other.lstrip("-") in ("", name):
+            if not isinstance(other, str) or other.removeprefix("-") in ("", name):
                 raise InvalidInput(f"`ties.{name}` must name another coordinate (\"-name\" "
                                    f"mirrored), got {other!r}")
         object.__setattr__(self, "ties", _frozen(ties))
