@@ -681,3 +681,10 @@ def test_hulls_that_overlap_are_no_collision_when_the_meshes_stay_apart(tmp_path
     through = check_robot_collisions(robot, [0.0, 1.0], np.array([[0.07, 0.07],
                                                                 [0.07, 0.03]]), [])
     assert not through.pairs[0].meshes_apart and not through.passed
+    # a ball (r 5 mm) wholly inside the bottom bar crosses no surface: still a collision
+    small = load_robot(_urdf(tmp_path, "bracket_small", body.replace(
+        '<sphere radius="0.02"/>', '<sphere radius="0.005"/>')))
+    inside = check_robot_collisions(small, [0.0], np.array([[0.1, 0.01]]), [])
+    assert not inside.pairs[0].meshes_apart and not inside.passed
+    beside = check_robot_collisions(small, [0.0], np.array([[0.1, 0.05]]), [])
+    assert beside.pairs[0].meshes_apart and beside.passed

@@ -732,7 +732,8 @@ def _meshes_apart(model: pin.Model, collision_model: pin.GeometryModel,
     mesh collision test, exact but unsigned) intersect at none of those samples: a hull
     contains its mesh, so an overlap of hulls is a candidate, the meshes decide.
     (solo12's base hull reaches over its upper legs near the hips: 1.9 mm in a jump whose
-    meshes stay apart.)"""
+    meshes stay apart.) A body wholly inside a closed mesh counts as intersecting it.
+    """
     candidates = [j for j, (a, b) in enumerate(pairs)
                   if (a in hulls or b in hulls) and np.min(distances[:, j]) < -tol]
     if not candidates:
@@ -741,6 +742,13 @@ def _meshes_apart(model: pin.Model, collision_model: pin.GeometryModel,
     request = coal.CollisionRequest()
     shapes = collision_model.geometryObjects
     apart = set(candidates)
+    corners: dict[int, np.ndarray | None] = {}
+
+    def triangles(i: int) -> np.ndarray | None:
+        if i not in corners:
+            corners[i] = _triangles(shapes[i].geometry)
+        return corners[i]
+
     for k in np.unique(np.nonzero(distances[:, candidates] < -tol)[0]):
         pin.updateGeometryPlacements(model, data, collision_model, geom_data, configs[k])
         for j in [j for j in apart if distances[k, j] < -tol]:
@@ -752,9 +760,59 @@ def _meshes_apart(model: pin.Model, collision_model: pin.GeometryModel,
                          shapes[b].geometry, coal.Transform3s(placement_b.rotation,
                                                               placement_b.translation),
                          request, result)
-            if result.isCollision():
+            # coal's mesh test sees the surfaces: a body wholly inside a mesh is no
+            # surface crossing, so one point of each is tested inside the other
+            if result.isCollision() or _inside(triangles(a), placement_a,
+                                               _a_point(shapes[b].geometry, placement_b)) \
+                    or _inside(triangles(b), placement_b,
+                               _a_point(shapes[a].geometry, placement_a)):
                 apart.discard(j)
     return apart
+
+
+RAY = np.array([0.5773, 0.5774, 0.5775])
+"""The direction of `_inside`'s ray: skewed, so that it does not run along an axis-aligned
+mesh's edges."""
+
+
+def _a_point(shape: object, placement: pin.SE3) -> np.ndarray:
+    """A point of the body in the world: a mesh's first vertex, else its frame's origin
+    (inside a primitive: sphere, box, cylinder, ...)."""
+    if isinstance(shape, coal.BVHModelBase) and shape.num_vertices:
+        return placement.act(np.asarray(shape.vertices(), dtype=float)[0])
+    return np.asarray(placement.translation, dtype=float)
+
+
+def _triangles(shape: object) -> np.ndarray | None:
+    """A mesh's triangles as their corners (n, 3, 3) in its frame; None for other shapes."""
+    if not isinstance(shape, coal.BVHModelBase) or not shape.num_tris:
+        return None
+    vertices = np.asarray(shape.vertices(), dtype=float)
+    corners = np.array([[t[i] for i in range(3)]
+                        for t in map(shape.tri_indices, range(shape.num_tris))])
+    return vertices[corners]
+
+
+def _inside(triangles: np.ndarray | None, placement: pin.SE3, point: np.ndarray) -> bool:
+    """Whether the world `point` lies inside the closed mesh of `triangles` (`_triangles`;
+    None: not a mesh, False) at `placement`: the parity of a ray's crossings of its
+    triangles (Moller-Trumbore)."""
+    if triangles is None:
+        return False
+    local = placement.rotation.T @ (np.asarray(point, dtype=float) - placement.translation)
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    e1, e2 = b - a, c - a
+    p = np.cross(RAY, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    ok = np.abs(det) > 1e-18
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = local - a
+    u = np.einsum("ij,ij->i", s, p) * inv
+    q = np.cross(s, e1)
+    v = (q @ RAY) * inv
+    t = np.einsum("ij,ij->i", e2, q) * inv
+    hits = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+    return bool(np.count_nonzero(hits) % 2)
 
 
 def _same_place(model: pin.Model, frame_a: int, frame_b: int) -> bool:
