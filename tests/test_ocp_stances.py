@@ -205,7 +205,7 @@ def test_bad_schedules_are_refused():
     with pytest.raises(InvalidInput, match="control jump"):
         resolve_stances(p, (Stance((0, 1), 0.0, 0.15), Stance((0,), 0.15, 0.4)),
                         guess=guess, verbose=False)
-    with pytest.raises(InvalidInput, match="either closes contacts or opens"):
+    with pytest.raises(InvalidInput, match="either close contacts .a touchdown. or open them"):
         resolve_stances(p, (Stance((0,), 0.0, 0.15), Stance((1,), 0.15, 0.4)),
                         guess=guess, verbose=False)
     with pytest.raises(InvalidInput, match="statically indeterminate"):
@@ -480,6 +480,26 @@ def test_a_swing_keeps_the_height_its_guess_reached(height):
     else:
         # (this plan falls back to the ground at T, where the reference's impact stops it:
         # its replay then ends 0.39 away, so its verification is not asserted)
+        assert plan.x[:, 3].max() < 0.02
+
+
+@pytest.mark.parametrize("middle", [True, False])
+def test_a_swing_the_guess_does_not_lift_gets_its_row_at_its_middle(middle):
+    """`swing_middle`: the swing of the test above from a guess resting on the ground
+    throughout (a given sequence's guess lifts no foot). With it, the node nearest the
+    swing's middle (0.3 s, an element boundary) keeps gap >= 0.05; without it no row is
+    added and the mass barely leaves the ground."""
+    p, stances, (t, x, u) = lifting_mass(40.0)
+    x = x.copy()
+    x[:, 3] = 0.0
+    options = StanceOptions(tol=1e-10, swing_heights=(None, 0.05), swing_middle=middle)
+    plan = resolve_stances(p, stances, options, guess=(t, x, u), verbose=False)
+    assert plan.solved, plan.ipopt_status
+    at_middle = np.argmin(np.abs(plan.t - 0.3))
+    assert plan.t[at_middle] == pytest.approx(0.3, abs=1e-12)
+    if middle:
+        assert plan.x[at_middle, 3] >= 0.05 - 1e-7
+    else:
         assert plan.x[:, 3].max() < 0.02
 
 

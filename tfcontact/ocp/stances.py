@@ -47,6 +47,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -165,6 +166,11 @@ class StanceOptions:
             them for a skim (bolt's reduced walk: the discovery lifted the right foot above
             5 cm, the re-solve without these rows 2 cm; benchmarks/legged.md). Empty: no
             rows.
+        swing_middle: also a swing in which the guess stays below h gets the row, at its
+            node nearest the swing's middle: a contact sequence given as data, whose guess
+            (a base reference, the legs at their start) lifts no foot, still steps rather
+            than skims. False: a swing the guess does not lift keeps no row (a discovery's
+            shuffle is not made a step).
         swing_fallback: when IPOPT finds the NLP with swing-height rows locally
             infeasible, solve it once more without them (`StancePlan.swing_rows_dropped`;
             the task's goals then decide). The rows ask of the exact plan what a relaxed
@@ -222,6 +228,7 @@ class StanceOptions:
     switch_margin: float = 0.02
     open_slip_gains: tuple[float | None, ...] = ()
     swing_heights: tuple[float | None, ...] = ()
+    swing_middle: bool = False
     swing_fallback: bool = True
     inverse_dynamics: bool = False
     element_derivatives: bool = True
@@ -239,9 +246,10 @@ class StanceOptions:
     def __post_init__(self) -> None:
         if self.integrator not in ("rk4", "radau"):
             raise InvalidInput(f"`integrator` must be 'rk4' or 'radau', got {self.integrator!r}")
-        if not isinstance(self.swing_fallback, bool):
-            raise InvalidInput(f"`swing_fallback` must be True or False, got "
-                               f"{self.swing_fallback!r}")
+        for name in ("swing_fallback", "swing_middle"):
+            if not isinstance(getattr(self, name), bool):
+                raise InvalidInput(f"`{name}` must be True or False, got "
+                                   f"{getattr(self, name)!r}")
         if not isinstance(self.inverse_dynamics, bool):
             raise InvalidInput(f"`inverse_dynamics` must be True or False, got "
                                f"{self.inverse_dynamics!r}")
@@ -680,6 +688,42 @@ class StancePlan:
         ])
 
 
+def sequence_changes(stances: Sequence[Any], horizon: float, n_intervals: int
+                     ) -> tuple[dict[int, int], list[int]]:
+    """Check the changes of a contact sequence and sort them: each change either closes
+    contacts (a touchdown, at a free time) or opens them (a lift-off, at a control jump
+    k T / N inside the horizon). `stances`: objects with `start` [s] and `closed` (contact
+    indices, or a task's frame names: the messages name what they hold).
+
+    Returns:
+        lift_offs: control jump k -> index of the stance the lift-off starts.
+        touchdowns: indices of the stances started by a touchdown.
+    """
+    dt = horizon / n_intervals
+    lift_offs: dict[int, int] = {}
+    touchdowns: list[int] = []
+    for j, (before, after) in enumerate(itertools.pairwise(stances), start=1):
+        closes = set(after.closed) - set(before.closed)
+        opens = set(before.closed) - set(after.closed)
+        if bool(closes) == bool(opens):
+            raise InvalidInput(
+                f"the stance at {after.start:g} s must either close contacts (a touchdown) "
+                f"or open them (a lift-off), not {'both' if closes else 'neither'}: "
+                f"{list(before.closed)} -> {list(after.closed)}; put one change after the "
+                "other")
+        if closes:
+            touchdowns.append(j)
+            continue
+        k = round(after.start / dt)
+        if abs(after.start - k * dt) > 1e-9 * horizon or not 0 < k < n_intervals:
+            raise InvalidInput(
+                f"the lift-off of {sorted(opens)} at {after.start:g} s is not at a control "
+                f"jump k T / N inside the horizon (T / N = {dt:g} s): move it to one, e.g. "
+                f"{min(max(k, 1), n_intervals - 1) * dt:g} s")
+        lift_offs[k] = j
+    return lift_offs, touchdowns
+
+
 def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                     options: StanceOptions | None = None, *,
                     guess: ContactResult | tuple[np.ndarray, np.ndarray, np.ndarray],
@@ -705,22 +749,7 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     n_q, n_u = cls.n_q, cls.n_u
     n_int, horizon = problem.n_intervals, problem.horizon
     dt = horizon / n_int
-    lift_offs: dict[int, int] = {}  # control jump k -> index of the stance it starts
-    touchdowns: list[int] = []  # indices of stances started by a touchdown
-    for j, (before, after) in enumerate(itertools.pairwise(stances), start=1):
-        added = set(after.closed) - set(before.closed)
-        removed = set(before.closed) - set(after.closed)
-        if added and removed or not (added or removed):
-            raise InvalidInput(f"stances {before.closed} -> {after.closed} at {after.start:.4g}"
-                               " s: a change either closes contacts or opens them")
-        if removed:
-            k = round(after.start / dt)
-            if abs(after.start - k * dt) > 1e-9 * horizon or not 0 < k < n_int:
-                raise InvalidInput(f"a lift-off at {after.start:.4g} s is not at a control "
-                                   f"jump k T / N inside the horizon (T / N = {dt:g} s)")
-            lift_offs[k] = j
-        else:
-            touchdowns.append(j)
+    lift_offs, touchdowns = sequence_changes(stances, horizon, n_int)
     start = time.perf_counter()
     dyn = StanceDynamics(cls, options.baumgarte)
     tableau = (RadauIIA(options.radau_stages).tableau() if options.integrator == "radau"
@@ -1007,9 +1036,15 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                 continue
             for begin, end in swings(stances, i, horizon):
                 inside = np.flatnonzero((node_t > begin) & (node_t < end))
-                if inside.size and guess_gaps[inside, i].max() >= h:
-                    highest = inside[np.argmax(guess_gaps[inside, i])]
-                    opti.subject_to(dyn.gaps(nodes[highest][1])[i] >= h)
+                if not inside.size:
+                    continue
+                if guess_gaps[inside, i].max() >= h:
+                    at = inside[np.argmax(guess_gaps[inside, i])]
+                elif options.swing_middle:
+                    at = inside[np.argmin(np.abs(node_t[inside] - (begin + end) / 2))]
+                else:
+                    continue
+                opti.subject_to(dyn.gaps(nodes[at][1])[i] >= h)
     y_end = y_of(x, horizon)
     if terminal_fn is not None:
         size = terminal.expression.shape[0]

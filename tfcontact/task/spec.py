@@ -9,7 +9,6 @@ TOML file: `contacts[1].radius`) and the fix.
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -17,7 +16,7 @@ from types import MappingProxyType
 from typing import Any
 
 from tfcontact.errors import InvalidInput, positive_int
-from tfcontact.ocp.stances import StanceOptions
+from tfcontact.ocp.stances import StanceOptions, sequence_changes
 from tfcontact.robot.spec import BASES
 from tfcontact.robot.terrain import Plane, Region, Terrain
 from tfcontact.timefreezing import InscribedPyramid, SmoothedCone, SpatialFriction
@@ -52,7 +51,8 @@ def _names(mapping: Mapping[str, Any], where: str) -> dict[str, Any]:
 
 
 RESOLVE_SETTINGS = frozenset({"cone_facets", "min_normal_force", "touchdown_speed",
-                              "interior_rows", "contact_tolerance", "cone_margin"})
+                              "interior_rows", "contact_tolerance", "cone_margin",
+                              "swing_middle"})
 """The `tfcontact.ocp.StanceOptions` fields a task's `[resolve]` table may set."""
 
 
@@ -461,8 +461,8 @@ class Task:
         resolve: settings of the stance re-solve (several contacts), a `[resolve]` table
             of `RESOLVE_SETTINGS`, each the `tfcontact.ocp.StanceOptions` field of its
             name: `cone_facets`, `min_normal_force`, `touchdown_speed`, `interior_rows`,
-            `contact_tolerance`, `cone_margin`. What a plan of four 3-D feet needed is in
-            benchmarks/legged.md.
+            `contact_tolerance`, `cone_margin`, `swing_middle`. What a plan of four 3-D
+            feet needed is in benchmarks/legged.md.
         attempts: solves of the plan at most (default: the preset's): a plan that fails
             is solved again from its guess perturbed (`ContactSolverOptions.attempts`).
             With `exact_resolve` the whole plan runs again, discovery and re-solve
@@ -651,24 +651,9 @@ class Task:
         if starts[0] != 0.0 or starts != sorted(set(starts)) or starts[-1] >= self.horizon:
             raise InvalidInput(f"`stances` must start at 0 s and their starts increase "
                                f"within the horizon [0, {self.horizon:g}) s, got {starts}")
-        step = self.horizon / self.n_intervals
         for s in stances:
             unknown = sorted(set(s.closed) - set(frames))
             if unknown:
                 raise InvalidInput(f"the stance at {s.start:g} s closes {unknown}, which are "
                                    f"not contacts; the contacts: {frames}")
-        for before, after in itertools.pairwise(stances):
-            closes = set(after.closed) - set(before.closed)
-            opens = set(before.closed) - set(after.closed)
-            if bool(closes) == bool(opens):
-                raise InvalidInput(
-                    f"the stance at {after.start:g} s must either close contacts (a "
-                    f"touchdown) or open them (a lift-off), not "
-                    f"{'both' if closes else 'neither'}: {list(before.closed)} -> "
-                    f"{list(after.closed)}; put one change after the other")
-            k = round(after.start / step)
-            if opens and abs(after.start - k * step) > 1e-9 * self.horizon:
-                raise InvalidInput(
-                    f"the lift-off of {sorted(opens)} at {after.start:g} s is not at a "
-                    f"control jump k T / N (T / N = {step:g} s): move it to one, e.g. "
-                    f"{k * step:g} s")
+        sequence_changes(stances, self.horizon, self.n_intervals)
