@@ -348,6 +348,15 @@ def test_a_capped_re_solve_reports_progress_and_fails_honestly(monkeypatch, caps
                                         np.zeros((10, 2))))
     out = capsys.readouterr().out
     assert "    iteration 5: objective" in out and "    iteration 10: objective" in out
+    assert "    iteration 4: objective" not in out
+    assert "    IPOPT started, " in out
+    # a slow solve also says where it is after `PROGRESS_SECONDS`
+    monkeypatch.setattr(nodes, "PROGRESS_SECONDS", 0.0)
+    polish.polish_contact(problem, (polish.Phase("stick", 0, 1),),
+                          polish.PolishOptions(substeps=2, max_iter=3),
+                          guess=(np.array([0.0, 1.0]), np.array([x0, x0]), np.zeros((10, 2))))
+    out = capsys.readouterr().out
+    assert all(f"    iteration {i}: objective" in out for i in (1, 2, 3))
     assert plan.ipopt_status == "Maximum_Iterations_Exceeded" and plan.iterations == 12
     assert plan.status == "nlp_failed" and not plan.success
     # where its time went: the build, IPOPT, and CasADi's evaluations inside IPOPT

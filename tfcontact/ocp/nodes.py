@@ -18,7 +18,10 @@ from tfcontact.mpcc import RepeatedBlock, evaluation_seconds, repeated_block_der
 from tfcontact.native import blas_threads
 
 PROGRESS_EVERY = 250
-"""A verbose re-solve prints a line every this many IPOPT iterations."""
+"""A verbose re-solve prints a line every this many IPOPT iterations..."""
+PROGRESS_SECONDS = 60.0
+"""...or when this many seconds [s] have passed since its last line (a 3-D legged NLP
+takes more than a second per iteration: 250 of them were six silent minutes)."""
 CAPPED = "Maximum_Iterations_Exceeded"
 """IPOPT's status at its iteration cap (the re-solves carry such an iterate on)."""
 
@@ -135,14 +138,22 @@ def interpolate(t: np.ndarray, x: np.ndarray, at: float,
 
 
 def report_progress(opti: ca.Opti) -> None:
-    """Print the objective and the elapsed time every `PROGRESS_EVERY` IPOPT iterations
-    of `opti`'s solves (a long solve says where it is)."""
+    """Print the objective and the elapsed time every `PROGRESS_EVERY` IPOPT iterations of
+    `opti`'s solves, or `PROGRESS_SECONDS` after the last line, and when IPOPT starts (the
+    NLP built): a long solve says where it is."""
     clock = time.perf_counter()
+    last = [clock]
 
     def progress(i: int) -> None:
-        if i > 0 and i % PROGRESS_EVERY == 0:
+        now = time.perf_counter()
+        if i == 0:
+            print(f"    IPOPT started, {now - clock:.0f} s after the build began", flush=True)
+        elif i % PROGRESS_EVERY == 0 or now - last[0] >= PROGRESS_SECONDS:
             print(f"    iteration {i}: objective {float(opti.debug.value(opti.f)):.6g}, "
-                  f"{time.perf_counter() - clock:.0f} s", flush=True)
+                  f"{now - clock:.0f} s", flush=True)
+        else:
+            return
+        last[0] = now
 
     opti.callback(progress)
 
