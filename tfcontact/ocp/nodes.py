@@ -147,7 +147,7 @@ def report_progress(opti: ca.Opti) -> None:
     def progress(i: int) -> None:
         now = time.perf_counter()
         if i == 0:
-            print(f"    IPOPT started, {now - clock:.0f} s after the build began", flush=True)
+            print(f"    IPOPT started ({now - clock:.0f} s setting up its solver)", flush=True)
         elif i % PROGRESS_EVERY == 0 or now - last[0] >= PROGRESS_SECONDS:
             print(f"    iteration {i}: objective {float(opti.debug.value(opti.f)):.6g}, "
                   f"{now - clock:.0f} s", flush=True)
