@@ -1149,16 +1149,17 @@ start = 0.175
 def test_a_task_solves_along_a_contact_sequence_it_gives(tmp_path):
     """`[[stances]]`: no discovery; the plan is solved exactly along the sequence given
     (toe0 lifts at the control jump 0.1 s and lands inside 0.15-0.2 s), and the
-    multi-contact reference, simulating the robot with the plan's controls, agrees."""
+    multi-contact reference, simulating the robot with the plan's controls, agrees. The
+    task is handed over as a `Task` built in Python, not as a file."""
     import json
 
     from tfcontact.plan_format import load_trajectory
     from tfcontact.scenes.plans import run_plan
 
     write_strider(tmp_path)
-    path = tmp_path / "step.toml"
-    path.write_text(STRIDER_STEP)
-    report = run_plan(path, tmp_path / "out", verbose=False)
+    task = task_from_dict(tomllib.loads(STRIDER_STEP), tmp_path)
+    report = run_plan(task, tmp_path / "out", verbose=False)
+    assert report.name == task.name
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert report.status == "converged", summary["summary"]
     assert [s["stage"] for s in summary["stages"]][:2] == ["stance solve", "collision check"]

@@ -38,6 +38,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from tfcontact.robot import Ground
+    from tfcontact.task import Task
 
 COLLISION = "collision"
 """The status of a plan whose robot goes through the terrain or through itself."""
@@ -96,14 +97,16 @@ PLANS: dict[str, Plan] = {
 }
 
 
-def task_plan(source: str | Path) -> Plan:
-    """The `Plan` of a task file (`tfcontact.task`): a path to a TOML file, or the name of
-    a shipped task (`tfcontact.task.shipped_tasks()`).
+def task_plan(source: str | Path | Task) -> Plan:
+    """The `Plan` of a task (`tfcontact.task`): a path to a TOML file, the name of a
+    shipped task (`tfcontact.task.shipped_tasks()`) or a `Task` built in Python (e.g. a
+    shipped one changed with `dataclasses.replace`).
 
     Raises:
         InvalidInput: no such task, or a bad field in it (named).
     """
     from tfcontact.task import (
+        Task,
         build_task,
         load_task,
         resolve_path_rows,
@@ -112,12 +115,15 @@ def task_plan(source: str | Path) -> Plan:
         task_stances,
     )
 
-    shipped = shipped_tasks()
-    path = shipped.get(str(source), Path(source))
-    if not str(path).endswith(".toml"):
-        raise InvalidInput(f"unknown plan `{source}`; available: "
-                           f"{', '.join([*PLANS, *shipped])}, or a task file PATH.toml")
-    data = load_task(path)
+    if isinstance(source, Task):
+        data, origin = source, f"task `{source.name}`"
+    else:
+        shipped = shipped_tasks()
+        path = shipped.get(str(source), Path(source))
+        if not str(path).endswith(".toml"):
+            raise InvalidInput(f"unknown plan `{source}`; available: "
+                               f"{', '.join([*PLANS, *shipped])}, or a task file PATH.toml")
+        data, origin = load_task(path), f"task file {path}"
     # one contact: its sequence with slip phases (`polish`); several: the stances found,
     # where the no-slip rows hold by construction (an open no-slip contact keeps
     # v_t^2 <= K gap: it does not skim the ground) and the reach rows are kept
@@ -154,31 +160,32 @@ def task_plan(source: str | Path) -> Plan:
                          from_start=from_start)
 
     if data.stances:  # the sequence is given: solved along it, no discovery
-        return Plan(name=data.name, summary=data.description or f"task file {path}",
+        return Plan(name=data.name, summary=data.description or origin,
                     tasks=("task",), stages=(GivenStances(
                         build, task_stances(data), resolve.options, resolve.path_rows),))
     if not data.exact_resolve:
-        return Plan(name=data.name, summary=data.description or f"task file {path}",
+        return Plan(name=data.name, summary=data.description or origin,
                     tasks=("task",), stages=(Discover(build),))
     # the re-solved plan is the plan: a failed one runs the whole pipeline again
     runs = solver_options(data).attempts
-    return Plan(name=data.name, summary=data.description or f"task file {path}",
+    return Plan(name=data.name, summary=data.description or origin,
                 tasks=("task",), stages=(Discover(build), resolve), whole_attempts=runs)
 
 
-def plan_named(name: str | Path) -> Plan:
-    """The plan `name`: one of `PLANS`, a shipped task or a task file's path."""
+def plan_named(name: str | Path | Task) -> Plan:
+    """The plan `name`: one of `PLANS`, a shipped task, a task file's path or a `Task`."""
     if isinstance(name, str) and name in PLANS:
         return PLANS[name]
     return task_plan(name)
 
 
-def run_plan(name: str | Path, out_dir: Path | str, *, task: str | None = None,
+def run_plan(name: str | Path | Task, out_dir: Path | str, *, task: str | None = None,
              attempts: int | None = None, verbose: bool = True,
              force: bool = False) -> PlanReport:
     """Solve the plan `name`, verify it and write trajectory, figures and replay to out_dir.
 
-    `name`: a plan of `PLANS`, a shipped task's name or a task file's path (`task_plan`).
+    `name`: a plan of `PLANS`, a shipped task's name, a task file's path or a `Task`
+    (`task_plan`).
 
     `attempts` overrides the plan's number of solves (`ContactSolverOptions.attempts`).
     The arguments and the output folder are checked before any solving
