@@ -246,3 +246,22 @@ def test_without_refinement_a_failed_step_is_followed_from_its_iterate():
                                                                1e-6])
     assert [s.refined for s in result.history] == [False, False, True, False, False, False]
     np.testing.assert_array_equal(solver.calls[5][1], solver.calls[4][2])
+
+
+def test_a_verbose_homotopy_says_where_a_long_nlp_is(monkeypatch, capsys):
+    """A verbose solve prints a line inside an NLP when `PROGRESS_SECONDS` have passed
+    since its last one (here 0: at every iteration after the first), naming the NLP; a
+    quiet solve of the same solver afterwards prints nothing."""
+    from tfcontact.mpcc import solver as mpcc_solver
+
+    monkeypatch.setattr(mpcc_solver, "PROGRESS_SECONDS", 0.0)
+    solver = MpccSolver(corner_mpcc())
+    result = solver.solve(homotopy=Homotopy(tolerance=1e-9), verbose=True)
+    out = capsys.readouterr().out
+    first = result.history[0].iterations
+    assert first >= 2
+    assert "      NLP 1: iteration 1, " in out and f"      NLP 1: iteration {first}, " in out
+    assert "NLP 1: iteration 0," not in out
+    assert "      NLP 2: iteration 1, " in out
+    solver.solve(homotopy=Homotopy(tolerance=1e-9))
+    assert capsys.readouterr().out == ""

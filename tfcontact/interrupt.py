@@ -19,7 +19,7 @@ from __future__ import annotations
 import os
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from types import FrameType
 
@@ -102,6 +102,8 @@ class StopOnSignal(ca.Callback):
     def __init__(self) -> None:
         ca.Callback.__init__(self)
         self.construct("stop_on_signal", {})
+        self.on_iteration: Callable[[], None] | None = None
+        """Called at each iteration (e.g. a progress line of a verbose solve)."""
 
     def get_n_in(self) -> int:
         return ca.nlpsol_n_out()
@@ -120,6 +122,8 @@ class StopOnSignal(ca.Callback):
         return ca.Sparsity.dense(0, 0)
 
     def eval(self, arg: list) -> list:
+        if self.on_iteration is not None:
+            self.on_iteration()
         return [1 if _pending else 0]
 
 

@@ -29,6 +29,34 @@ from tfcontact.mpcc.relaxation import Relaxation, Scholtes
 # IPOPT return statuses that mean the NLP was solved.
 _IPOPT_SOLVED = {"Solve_Succeeded", "Solved_To_Acceptable_Level"}
 
+PROGRESS_EVERY = 250
+"""A verbose NLP prints a line every this many IPOPT iterations..."""
+PROGRESS_SECONDS = 60.0
+"""...or when this many seconds [s] have passed since its last line (a 3-D legged NLP
+takes more than a second per iteration: 250 of them were six silent minutes)."""
+
+
+class IterationProgress:
+    """When a long NLP should say where it is: at every `every`-th iteration, or once
+    `seconds` have passed since its last line (`due`, called once per iteration)."""
+
+    def __init__(self, every: int | None = None, seconds: float | None = None) -> None:
+        self.every = PROGRESS_EVERY if every is None else every
+        self.seconds = PROGRESS_SECONDS if seconds is None else seconds
+        self.start = self.last = time.perf_counter()
+
+    @property
+    def elapsed(self) -> float:
+        """[s] since it was made."""
+        return time.perf_counter() - self.start
+
+    def due(self, iteration: int) -> bool:
+        now = time.perf_counter()
+        if iteration > 0 and (iteration % self.every == 0 or now - self.last >= self.seconds):
+            self.last = now
+            return True
+        return False
+
 
 @dataclass(frozen=True)
 class Homotopy:
@@ -395,6 +423,19 @@ class MpccSolver:
         `stats()`: return status, iteration count, `t_wall_nlp_*` evaluation times, ...)."""
         return dict(self._solver.stats())
 
+    @staticmethod
+    def _progress_line(nlp: int) -> Any:
+        """An `iteration_callback` hook printing where a long NLP is (`IterationProgress`)."""
+        progress, count = IterationProgress(), [0]
+
+        def tick() -> None:
+            if progress.due(count[0]):
+                print(f"      NLP {nlp}: iteration {count[0]}, {progress.elapsed:.0f} s",
+                      flush=True)
+            count[0] += 1
+
+        return tick
+
     def _p_value(self, p: np.ndarray | None) -> np.ndarray:
         n_p = self.mpcc.p.numel()
         if p is None:
@@ -491,7 +532,12 @@ class MpccSolver:
             stepping_stone = (self._intermediate_solver is not None
                               and sigma > homotopy.tolerance * (1 + 1e-9))
             for intermediate in ((True, False) if stepping_stone else (False,)):
-                x, lam, step, violation = self._solve_nlp(x, lam, p, sigma, intermediate)
+                if verbose:
+                    self._stop_on_signal.on_iteration = self._progress_line(len(history) + 1)
+                try:
+                    x, lam, step, violation = self._solve_nlp(x, lam, p, sigma, intermediate)
+                finally:
+                    self._stop_on_signal.on_iteration = None
                 step = dataclasses.replace(step, refined=refined)
                 history.append(step)
                 residual, objective = step.residual, step.objective

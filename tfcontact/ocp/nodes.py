@@ -15,13 +15,9 @@ import numpy as np
 
 from tfcontact import interrupt
 from tfcontact.mpcc import RepeatedBlock, evaluation_seconds, repeated_block_derivatives
+from tfcontact.mpcc.solver import PROGRESS_EVERY, PROGRESS_SECONDS, IterationProgress
 from tfcontact.native import blas_threads
 
-PROGRESS_EVERY = 250
-"""A verbose re-solve prints a line every this many IPOPT iterations..."""
-PROGRESS_SECONDS = 60.0
-"""...or when this many seconds [s] have passed since its last line (a 3-D legged NLP
-takes more than a second per iteration: 250 of them were six silent minutes)."""
 CAPPED = "Maximum_Iterations_Exceeded"
 """IPOPT's status at its iteration cap (the re-solves carry such an iterate on)."""
 
@@ -141,21 +137,17 @@ def report_progress(opti: ca.Opti) -> None:
     """Print the objective and the elapsed time every `PROGRESS_EVERY` IPOPT iterations of
     `opti`'s solves, or `PROGRESS_SECONDS` after the last line, and when IPOPT starts (the
     NLP built): a long solve says where it is."""
-    clock = time.perf_counter()
-    last = [clock]
+    progress = IterationProgress(PROGRESS_EVERY, PROGRESS_SECONDS)
 
-    def progress(i: int) -> None:
-        now = time.perf_counter()
+    def report(i: int) -> None:
         if i == 0:
-            print(f"    IPOPT started ({now - clock:.0f} s setting up its solver)", flush=True)
-        elif i % PROGRESS_EVERY == 0 or now - last[0] >= PROGRESS_SECONDS:
+            print(f"    IPOPT started ({progress.elapsed:.0f} s setting up its solver)",
+                  flush=True)
+        elif progress.due(i):
             print(f"    iteration {i}: objective {float(opti.debug.value(opti.f)):.6g}, "
-                  f"{now - clock:.0f} s", flush=True)
-        else:
-            return
-        last[0] = now
+                  f"{progress.elapsed:.0f} s", flush=True)
 
-    opti.callback(progress)
+    opti.callback(report)
 
 
 def solve_guarded(opti: ca.Opti, threads: int | None):
