@@ -1298,6 +1298,61 @@ def test_solo12_jumps_along_its_given_contact_sequence_verified_and_clear(tmp_pa
     assert impulse == pytest.approx(weight * t[last] + momentum[last] - momentum[0], rel=2e-2)
 
 
+@pytest.mark.slow
+def test_solo12_trots_along_its_given_contact_sequence_verified_and_clear(tmp_path):
+    """`quadruped-trot-schedule` cut to its first two diagonal steps (T = 0.5 s, N = 10,
+    0.15 m forwards; measured 100 s): verified by the multi-contact reference, task done,
+    clear. Checked on Pinocchio's foot placements: in each swing the swinging diagonal
+    pair rises above 3 cm while the other pair stays on the ground without sliding, all
+    four feet are down at both ends, and the base ends 0.15 m forwards."""
+    import dataclasses
+
+    import pinocchio as pin
+
+    from tfcontact.plan_format import load_trajectory
+    from tfcontact.robot import RobotSpec, load_robot
+    from tfcontact.scenes.plans import run_plan
+    from tfcontact.task import Waypoint, load_task, shipped_tasks
+
+    full = load_task(shipped_tasks()["quadruped-trot-schedule"])
+    horizon, end = 0.5, {"x": 0.15}
+    task = dataclasses.replace(
+        full, horizon=horizon, n_intervals=10,
+        stances=tuple(s for s in full.stances if s.start < horizon),
+        waypoints=(Waypoint(horizon, {**full.waypoints[-1].values, **end}),),
+        goals=dataclasses.replace(full.goals, end=end,
+                                  lift_offs=dict.fromkeys(full.goals.lift_offs, 1)))
+    assert [s.closed for s in task.stances][1:4:2] == [("FR_FOOT", "HL_FOOT"),
+                                                       ("FL_FOOT", "HR_FOOT")]
+    report = run_plan(task, tmp_path, verbose=False)
+    assert report.success and report.status == "converged", report.summary
+    trajectory = load_trajectory(tmp_path / "trajectory.npz")
+    assert trajectory.verification["passed"] and trajectory.task["passed"]
+    model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
+    data = model.createData()
+    frames = [model.getFrameId(f"{leg}_FOOT") for leg in ("FL", "FR", "HL", "HR")]
+    feet = []
+    for q in trajectory.q:
+        pin.framesForwardKinematics(model, data, q)
+        feet.append([data.oMf[f].translation.copy() for f in frames])
+    feet, t = np.array(feet), trajectory.clock  # (samples, foot, xyz)
+    heights = feet[:, :, 2] - 0.016
+    assert np.all(np.abs(heights[0]) < 1e-4) and np.all(np.abs(heights[-1]) < 1e-4)
+    solved = trajectory.solver["stances"]  # the touchdowns at their solved times
+    assert [s["closed"] for s in solved] == [[0, 1, 2, 3], [1, 2], [0, 1, 2, 3], [0, 3],
+                                             [0, 1, 2, 3]]
+    for swing, landing in ((solved[1], solved[2]), (solved[3], solved[4])):
+        inside = (t > swing["start"] + 1e-9) & (t < landing["start"] - 1e-9)
+        down = swing["closed"]
+        up = [i for i in range(4) if i not in down]
+        assert np.all(heights[inside][:, up] > 0)
+        assert np.all(heights[inside][:, up].max(axis=0) > 0.03)
+        assert np.all(np.abs(heights[inside][:, down]) < 1e-4)
+        slide = feet[inside][:, down, :2] - feet[inside][:1, down, :2]
+        assert np.abs(slide).max() < 1e-3
+    assert abs(trajectory.q[-1, 0] - 0.15) <= 0.05
+
+
 
 def test_ties_make_coordinates_follow_others_in_the_discovery_only(tmp_path):
     """`ties`: rows q_a - s q_b = 0 and v_a - s v_b = 0 after the reach rows (s = -1 for
