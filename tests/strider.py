@@ -76,3 +76,20 @@ def write_strider(folder: Path) -> Path:
     path = folder / "strider.toml"
     path.write_text(STRIDER_TASK)
     return path
+
+
+# The strider along a contact sequence given as data: toe0 lifts at 0.1 s and lands
+# inside 0.15-0.2 s (no discovery).
+STRIDER_STEP = (STRIDER_TASK.replace("exact_resolve = true\n", "")
+                .replace("[goals]\n", "[goals]\nlift_offs = { toe0 = 1 }\nlift_height = 0.01\n")
+                + """
+[[stances]]
+closed = ["toe0", "toe1"]
+start = 0.0
+[[stances]]
+closed = ["toe1"]
+start = 0.1
+[[stances]]
+closed = ["toe0", "toe1"]
+start = 0.175
+""")

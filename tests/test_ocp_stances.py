@@ -2,6 +2,8 @@
 forms with two contacts: two point masses, each with its own frictional contact with the
 ground (independent contacts, so every stance's Delassus matrix is regular)."""
 
+import dataclasses
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -643,3 +645,13 @@ def test_bolt_steps_once_per_foot_along_the_stances_of_a_saved_discovery():
     assert plan.iterations < 300
     assert plan.verification.passed, plan.verification.summary()
     assert plan.x[-1, 0] == pytest.approx(0.5, abs=0.05)  # the base's x at T
+
+
+def test_a_first_stance_whose_contacts_start_off_the_ground_is_refused():
+    """The first stance's contacts stick from t = 0: a start with one of them in the air
+    (here 0.1 m up) is refused, naming the contact, its gap and the fix."""
+    p, stances, guess = lifting_mass(40.0)
+    lifted = dataclasses.replace(p, q0=np.array([0.0, 0.0, 1.0, 0.1]))
+    with pytest.raises(InvalidInput, match=r"closes contacts \[1\], but the start has them "
+                                           r"0.1 m from the ground"):
+        resolve_stances(lifted, stances, guess=guess, verbose=False)

@@ -548,6 +548,46 @@ def test_a_case_runs_the_plans_later_stages_from_its_perturbed_start(tmp_path, m
     assert CaseResult.from_dict(json.loads(json.dumps(record.to_dict()))) == record
 
 
+def test_a_given_contact_sequence_is_swept_from_perturbed_starts(tmp_path, monkeypatch):
+    """A task with `[[stances]]` (no discovery): a case solves along the given sequence
+    from its perturbed start (the task stated from there), verified and collision checked
+    as `tfcontact plan` runs it; its record is that stage's. Grid keys, which set a
+    discovery, are refused; a start that lifts the first stance's contacts off the ground
+    (the strider's default ranges raise its base) is a case that errs, naming why."""
+    from strider import STRIDER_STEP, write_strider
+
+    from tfcontact.scenes import pipeline
+    from tfcontact.sweep.run import solve_case
+
+    solved = []
+    resolve = pipeline.resolve_stances
+
+    def recording(problem, *args, **kwargs):
+        solved.append((problem.q0.copy(), resolve(problem, *args, **kwargs)))
+        return solved[-1][1]
+
+    monkeypatch.setattr(pipeline, "resolve_stances", recording)
+    write_strider(tmp_path)
+    path = tmp_path / "step.toml"
+    # its starts along x only: the first stance's toes stay on the ground
+    path.write_text(STRIDER_STEP + "\n[start_ranges]\nx = [-0.05, 0.05]\n")
+    target = sweep_target(str(path))
+    record = solve_case(target, "task", SweepCase((), 0, 3), threads=1)
+    assert [s["stage"] for s in record.extra["stages"]] == ["stance solve", "collision check"]
+    assert max(abs(v) for v in record.offsets.values()) > 1e-3  # the start moved
+    (q0, plan), = solved
+    np.testing.assert_array_equal(q0, record.q0)
+    assert record.objective == plan.cost and record.iterations == plan.iterations
+    assert record.status == "converged" and record.success, record.failure
+    assert "verification PASSED" in record.verification
+    assert CaseResult.from_dict(json.loads(json.dumps(record.to_dict()))) == record
+    with pytest.raises(InvalidInput, match="given as data: the grid keys"):
+        SweepSpec(str(path), grid={"relaxation": ["scholtes"]})
+    path.write_text(STRIDER_STEP)
+    with pytest.raises(InvalidInput, match="the first stance closes contacts"):
+        solve_case(sweep_target(str(path)), "task", SweepCase((), 0, 3), threads=1)
+
+
 def test_a_task_files_case_is_the_task_stated_from_its_perturbed_start(tmp_path):
     """A task file's case plans from its start as a user standing there would state it:
     the tracked splines begin at the perturbed start (the tracking cost vanishes there at

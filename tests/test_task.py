@@ -9,7 +9,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
-from strider import STRIDER_TASK, write_strider
+from strider import STRIDER_STEP, STRIDER_TASK, write_strider
 
 from tfcontact.errors import InvalidInput
 from tfcontact.task import (
@@ -1129,21 +1129,6 @@ def test_a_task_sets_the_stance_resolves_elements(tmp_path):
         dataclasses.replace(task, exact_resolve=False, resolve_elements=2)
     with pytest.raises(InvalidInput, match="`resolve_elements` sets the stance re-solve"):
         dataclasses.replace(task, contacts=task.contacts[:1], resolve_elements=2)
-
-
-STRIDER_STEP = (STRIDER_TASK.replace("exact_resolve = true\n", "")
-                .replace("[goals]\n", "[goals]\nlift_offs = { toe0 = 1 }\nlift_height = 0.01\n")
-                + """
-[[stances]]
-closed = ["toe0", "toe1"]
-start = 0.0
-[[stances]]
-closed = ["toe1"]
-start = 0.1
-[[stances]]
-closed = ["toe0", "toe1"]
-start = 0.175
-""")
 
 
 def test_a_task_solves_along_a_contact_sequence_it_gives(tmp_path):

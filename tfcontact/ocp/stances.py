@@ -750,6 +750,15 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     n_int, horizon = problem.n_intervals, problem.horizon
     dt = horizon / n_int
     lift_offs, touchdowns = sequence_changes(stances, horizon, n_int)
+    # the first stance's contacts stick from t = 0: they must touch at the start
+    start_gaps = np.asarray(cls.function("gaps")(problem.q0), dtype=float).ravel()
+    apart = [i for i in stances[0].closed if abs(start_gaps[i]) > options.contact_gap]
+    if apart:
+        raise InvalidInput(
+            f"the first stance closes contacts {apart}, but the start has them "
+            f"{', '.join(f'{start_gaps[i]:.3g}' for i in apart)} m from the ground "
+            f"(more than contact_gap = {options.contact_gap:g} m): start with them on the "
+            "ground, or open them in the first stance (a touchdown later)")
     start = time.perf_counter()
     dyn = StanceDynamics(cls, options.baumgarte)
     tableau = (RadauIIA(options.radau_stages).tableau() if options.integrator == "radau"

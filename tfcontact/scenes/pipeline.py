@@ -552,10 +552,17 @@ class Plan:
 
     @property
     def build(self) -> Callable[[str | None], PlanSetup] | None:
-        """The problem builder of a plan that starts with a `Discover` (sweeps perturb
-        its start), else None."""
+        """The problem builder of a plan that starts with a `Discover` or `GivenStances`
+        (sweeps perturb its start), else None."""
         first = self.stages[0]
-        return first.build if isinstance(first, Discover) else None
+        return first.build if isinstance(first, Discover | GivenStances) else None
+
+    @property
+    def given_sequence(self) -> GivenStances | None:
+        """The first stage when it solves along a contact sequence given as data (no
+        discovery), else None."""
+        first = self.stages[0]
+        return first if isinstance(first, GivenStances) else None
 
     def stages_for(self, task: str) -> tuple[Stage, ...]:
         """The stages that run for `task`, in order."""

@@ -133,6 +133,25 @@ class CaseResult:
                    "task": result.task.to_dict()},
         )
 
+    @classmethod
+    def from_stages(cls, case: SweepCase, plan: str, task: str, start: Any,
+                    q_names: tuple[str, ...], outcome: Any, stages: list[dict],
+                    wall_time: float, *, cpu_time: float = math.nan) -> CaseResult:
+        """The record of a case with no discovery (a contact sequence given as data):
+        its stages' `PlanOutcome` and entries (`after_stages`), one attempt."""
+        return cls(
+            case_id=case.case_id, plan=plan, task=task, params=case.params, start=case.start,
+            seed=case.seed, offsets=dict(start.offsets),
+            q0=tuple(float(v) for v in start.q0), v0=tuple(float(v) for v in start.v0),
+            q_names=q_names, status=outcome.status, success=bool(outcome.success),
+            first_attempt_success=bool(outcome.success), attempts_used=1,
+            # an exact plan along its stances: no relaxed complementarity, residual 0
+            attempt_statuses=(outcome.status,), iterations=0, objective=math.nan,
+            residual=0.0, end_state_deviation=math.nan,
+            times={"wall": float(wall_time), "cpu": float(cpu_time)}, failure=None,
+            failure_kind=None, extra={"draws": start.tries, "attempts": []},
+        ).after_stages(outcome, stages)
+
     def after_runs(self, earlier: Sequence[Any]) -> CaseResult:
         """This record of a plan's last run (`Plan.whole_attempts`) with the discovery
         solves of the runs before it (their `ContactResult`s) counted first: attempts

@@ -50,6 +50,15 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
     rng = np.random.default_rng([case.seed, case.start])
     start = target.perturbation(setup).sample(setup.problem, rng)
     problem = target.from_start(setup, task, problem_params, start)
+    given = target.given_sequence(task)
+    if given is not None:  # no discovery: the sequence's solve from the perturbed start
+        moved = dataclasses.replace(setup, problem=problem, options=options)
+        stage = dataclasses.replace(given, build=lambda _: moved)
+        outcome, stage_times = run_later_stages(target.name, task, (stage,), None)
+        return CaseResult.from_stages(case, target.name, task, start,
+                                      tuple(problem.system.cls.q_names), outcome,
+                                      stage_times, time.perf_counter() - started,
+                                      cpu_time=time.process_time() - cpu)
     stages = target.later_stages(task)
     if not stages:
         result = solve_contact(problem, options, verbose=False)
@@ -83,8 +92,8 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
 
 def run_later_stages(plan: str, task: str, stages, outcome) -> tuple[Any, list[dict]]:
     """The outcome of a plan's `stages` after its discovery (whose `PlanOutcome` is
-    `outcome`), collisions checked, and each stage's entry (`tfcontact.scenes.plans.
-    run_checked`, as `tfcontact plan` runs them)."""
+    `outcome`; None: the stages start the plan), collisions checked, and each stage's
+    entry (`tfcontact.scenes.plans.run_checked`, as `tfcontact plan` runs them)."""
     import tempfile
 
     from tfcontact.scenes.plans import run_checked

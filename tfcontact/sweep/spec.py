@@ -233,6 +233,10 @@ class SweepSpec:
         object.__setattr__(self, "task", task)
         object.__setattr__(self, "seed", int(self.seed))
         object.__setattr__(self, "grid", _checked_grid(self.grid, target))
+        if self.grid and target.given_sequence(task) is not None:
+            raise InvalidInput(f"plan `{self.plan}` solves along a contact sequence given as "
+                               f"data: the grid keys ({', '.join(k for k, _ in self.grid)}) "
+                               "set a discovery, which it does not run; sweep its starts only")
 
     @property
     def target(self):

@@ -22,7 +22,7 @@ from tfcontact.sweep.perturbation import (
 
 if TYPE_CHECKING:
     from tfcontact.scenes import Plan
-    from tfcontact.scenes.pipeline import Stage
+    from tfcontact.scenes.pipeline import GivenStances, Stage
 
 
 class SweepTarget(ABC):
@@ -63,6 +63,11 @@ class SweepTarget(ABC):
     def whole_attempts(self, task: str) -> int | None:
         """How often a case runs the whole plan until it succeeds (`Plan.whole_attempts`;
         default None: once, the discovery retried by its own attempts)."""
+        return None
+
+    def given_sequence(self, task: str) -> GivenStances | None:
+        """The plan's first stage when it solves along a contact sequence given as data
+        instead of a discovery (a case runs it on its perturbed start), else None."""
         return None
 
 
@@ -175,7 +180,8 @@ class ParticleTarget(SweepTarget):
 
 @dataclass(frozen=True)
 class PlanTarget(SweepTarget):
-    """Any plan of `tfcontact.scenes.PLANS` (or task file) that starts with a discovery:
+    """Any plan of `tfcontact.scenes.PLANS` (or task file) that starts with a discovery or
+    solves along a contact sequence given as data:
     its starts perturbed by its task's `start_ranges` or else the defaults of its
     coordinate names, only options-level grid keys; a case runs the plan's later stages
     too (e.g. biped-walk's stance re-solve)."""
@@ -196,6 +202,9 @@ class PlanTarget(SweepTarget):
 
     def whole_attempts(self, task: str) -> int | None:
         return plan_named(self.name).whole_attempts
+
+    def given_sequence(self, task: str) -> GivenStances | None:
+        return plan_named(self.name).given_sequence
 
     def description(self) -> dict:
         from tfcontact.scenes.plans import PLANS
@@ -243,10 +252,12 @@ def sweep_target(plan: str) -> SweepTarget:
             raise InvalidInput(f"unknown plan `{plan}`; sweepable plans: "
                                f"{', '.join(sweepable)}, or a task file PATH.toml") from None
     if found.build is None:
-        raise InvalidInput(f"plan `{plan}` does not start with a discovery, so it has no "
-                           f"single contact problem whose start a sweep could perturb; "
-                           f"sweepable plans: {', '.join(sweepable)}")
-    own = [s.name for s in found.stages if s.own_setup]
+        raise InvalidInput(f"plan `{plan}` does not start with a discovery or a contact "
+                           f"sequence given as data, so it has no single contact problem "
+                           f"whose start a sweep could perturb; sweepable plans: "
+                           f"{', '.join(sweepable)}")
+    # a given sequence's stage builds its problem, which a case replaces by its own
+    own = [s.name for s in found.stages[1:] if s.own_setup]
     if own:
         raise InvalidInput(f"plan `{plan}` has stages that solve problems of their own "
                            f"({', '.join(own)}), not the perturbed start's; sweepable "
@@ -255,4 +266,4 @@ def sweep_target(plan: str) -> SweepTarget:
 
 
 def _sweepable(plan: Plan) -> bool:
-    return plan.build is not None and not any(s.own_setup for s in plan.stages)
+    return plan.build is not None and not any(s.own_setup for s in plan.stages[1:])
