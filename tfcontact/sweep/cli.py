@@ -31,7 +31,8 @@ def add_sweep_parser(subparsers: Any) -> argparse.ArgumentParser:
                     "OUT/table.md and OUT/chart.png are written.")
     parser.add_argument("plan", help="the plan: hopper, particle (TF-3), another plan of "
                                      "`tfcontact plan --list` that starts with a discovery "
-                                     "(its later stages run too), or a task file")
+                                     "(its later stages run too) or solves along a given "
+                                     "contact sequence, or a task file")
     parser.add_argument("--task", default=None,
                         help="the plan's task (default its first; hopper: short, long, "
                              "bench; particle: tf3, reduced)")
