@@ -507,15 +507,9 @@ def test_a_case_that_raises_is_recorded_and_solved_again(tmp_path, monkeypatch):
 
 
 @pytest.mark.slow
-def test_a_case_runs_the_plans_later_stages_from_its_perturbed_start(tmp_path, monkeypatch):
-    """A task file with `exact_resolve`: a case's discovery from its perturbed start,
-    then the stance re-solve of that discovery's problem (the same start) and the
-    collision check, as `tfcontact plan` runs them, the whole plan again while it fails
-    (the default preset's 3 runs); the record is the whole plan's."""
-    from strider import write_strider
-
+def recorded_stance_solves(monkeypatch) -> list:
+    """The (start q0, plan) of every `resolve_stances` a stage makes, as it makes them."""
     from tfcontact.scenes import pipeline
-    from tfcontact.sweep.run import solve_case
 
     solved = []
     resolve = pipeline.resolve_stances
@@ -525,6 +519,19 @@ def test_a_case_runs_the_plans_later_stages_from_its_perturbed_start(tmp_path, m
         return solved[-1][1]
 
     monkeypatch.setattr(pipeline, "resolve_stances", recording)
+    return solved
+
+
+def test_a_case_runs_the_plans_later_stages_from_its_perturbed_start(tmp_path, monkeypatch):
+    """A task file with `exact_resolve`: a case's discovery from its perturbed start,
+    then the stance re-solve of that discovery's problem (the same start) and the
+    collision check, as `tfcontact plan` runs them, the whole plan again while it fails
+    (the default preset's 3 runs); the record is the whole plan's."""
+    from strider import write_strider
+
+    from tfcontact.sweep.run import solve_case
+
+    solved = recorded_stance_solves(monkeypatch)
     target = sweep_target(str(write_strider(tmp_path)))
     record = solve_case(target, "task", SweepCase((), 0, 3), threads=1)
     stages = record.extra["stages"]
@@ -556,17 +563,9 @@ def test_a_given_contact_sequence_is_swept_from_perturbed_starts(tmp_path, monke
     (the strider's default ranges raise its base) is a case that errs, naming why."""
     from strider import STRIDER_STEP, write_strider
 
-    from tfcontact.scenes import pipeline
     from tfcontact.sweep.run import solve_case
 
-    solved = []
-    resolve = pipeline.resolve_stances
-
-    def recording(problem, *args, **kwargs):
-        solved.append((problem.q0.copy(), resolve(problem, *args, **kwargs)))
-        return solved[-1][1]
-
-    monkeypatch.setattr(pipeline, "resolve_stances", recording)
+    solved = recorded_stance_solves(monkeypatch)
     write_strider(tmp_path)
     path = tmp_path / "step.toml"
     # its starts along x only: the first stance's toes stay on the ground
