@@ -561,8 +561,11 @@ def test_a_given_contact_sequence_is_swept_from_perturbed_starts(tmp_path, monke
     as `tfcontact plan` runs it; its record is that stage's. Grid keys, which set a
     discovery, are refused; a start that lifts the first stance's contacts off the ground
     (the strider's default ranges raise its base) is a case that errs, naming why."""
+    from pathlib import Path
+
     from strider import STRIDER_STEP, write_strider
 
+    from tfcontact.sweep.results import SweepResult
     from tfcontact.sweep.run import solve_case
 
     solved = recorded_stance_solves(monkeypatch)
@@ -580,6 +583,10 @@ def test_a_given_contact_sequence_is_swept_from_perturbed_starts(tmp_path, monke
     assert record.status == "converged" and record.success, record.failure
     assert "verification PASSED" in record.verification
     assert CaseResult.from_dict(json.loads(json.dumps(record.to_dict()))) == record
+    table = SweepResult(SweepSpec(str(path), starts=1), Path("."), (record,), 1, 0, 1.0,
+                        "here").table()
+    assert ("Each case ran the plan's stages (stance solve, collision check) as `tfcontact "
+            "plan` does, with no discovery") in table
     with pytest.raises(InvalidInput, match="given as data: the grid keys"):
         SweepSpec(str(path), grid={"relaxation": ["scholtes"]})
     path.write_text(STRIDER_STEP)

@@ -155,6 +155,11 @@ def _stages_text(cases: Sequence[CaseResult]) -> str:
     stages = next((c.extra["stages"] for c in cases if c.extra.get("stages")), None)
     if not stages:
         return ""
+    if stages[0]["stage"] != "discover":  # a contact sequence given as data
+        return (f" Each case ran the plan's stages ({', '.join(s['stage'] for s in stages)})"
+                " as `tfcontact plan` does, with no discovery (the contact sequence is given"
+                " as data: one solve, no restart): it is verified when its plan is verified,"
+                " its task done and it is clear of the terrain.")
     later = [s["stage"] for s in stages[1:] if s.get("run", 1) == 1]
     return (f" Each case also ran the plan's later stages ({', '.join(later)}) as "
             "`tfcontact plan` does: it is verified when the whole plan succeeded (the last "
