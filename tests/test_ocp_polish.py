@@ -336,10 +336,10 @@ def test_tf9s_grid_re_solves_the_rk4_plan_but_fails_the_exact_replay():
 def test_a_capped_re_solve_reports_progress_and_fails_honestly(monkeypatch, capsys):
     """A long re-solve prints a line every `PROGRESS_EVERY` iterations; stopped at the
     iteration cap, its plan is nlp_failed (not a plan marked successful)."""
-    from tfcontact.ocp import nodes
+    from tfcontact.mpcc import solver as mpcc_solver
     from tfcontact.scenes.monoped import monoped_problem
 
-    monkeypatch.setattr(nodes, "PROGRESS_EVERY", 5)
+    monkeypatch.setattr(mpcc_solver, "PROGRESS_EVERY", 5)
     problem = monoped_problem("reduced").problem  # to x = 1: no plan by standing still
     x0 = np.array([0, 0.4, 0, 0, 0, 0, 0, 0.0])
     plan = polish.polish_contact(problem, (polish.Phase("stick", 0, 1),),
@@ -351,7 +351,7 @@ def test_a_capped_re_solve_reports_progress_and_fails_honestly(monkeypatch, caps
     assert "    iteration 4: objective" not in out
     assert "    IPOPT started (" in out
     # a slow solve also says where it is after `PROGRESS_SECONDS`
-    monkeypatch.setattr(nodes, "PROGRESS_SECONDS", 0.0)
+    monkeypatch.setattr(mpcc_solver, "PROGRESS_SECONDS", 0.0)
     polish.polish_contact(problem, (polish.Phase("stick", 0, 1),),
                           polish.PolishOptions(substeps=2, max_iter=3),
                           guess=(np.array([0.0, 1.0]), np.array([x0, x0]), np.zeros((10, 2))))

@@ -15,7 +15,7 @@ import numpy as np
 
 from tfcontact import interrupt
 from tfcontact.mpcc import RepeatedBlock, evaluation_seconds, repeated_block_derivatives
-from tfcontact.mpcc.solver import PROGRESS_EVERY, PROGRESS_SECONDS, IterationProgress
+from tfcontact.mpcc.solver import IterationProgress
 from tfcontact.native import blas_threads
 
 CAPPED = "Maximum_Iterations_Exceeded"
@@ -134,10 +134,10 @@ def interpolate(t: np.ndarray, x: np.ndarray, at: float,
 
 
 def report_progress(opti: ca.Opti) -> None:
-    """Print the objective and the elapsed time every `PROGRESS_EVERY` IPOPT iterations of
-    `opti`'s solves, or `PROGRESS_SECONDS` after the last line, and when IPOPT starts (the
-    NLP built): a long solve says where it is."""
-    progress = IterationProgress(PROGRESS_EVERY, PROGRESS_SECONDS)
+    """Print the objective and the elapsed time when IPOPT starts (the NLP built) and then
+    as `IterationProgress` says (every 250 iterations or each minute): a long solve says
+    where it is."""
+    progress = IterationProgress()
 
     def report(i: int) -> None:
         if i == 0:
