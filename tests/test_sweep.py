@@ -508,15 +508,17 @@ def test_a_case_that_raises_is_recorded_and_solved_again(tmp_path, monkeypatch):
 
 @pytest.mark.slow
 def recorded_stance_solves(monkeypatch) -> list:
-    """The (start q0, plan) of every `resolve_stances` a stage makes, as it makes them."""
+    """The (start q0, plan, IPOPT's threads) of every `resolve_stances` a stage makes, as
+    it makes them."""
     from tfcontact.scenes import pipeline
 
     solved = []
     resolve = pipeline.resolve_stances
 
-    def recording(problem, *args, **kwargs):
-        solved.append((problem.q0.copy(), resolve(problem, *args, **kwargs)))
-        return solved[-1][1]
+    def recording(problem, stances, options, *args, **kwargs):
+        plan = resolve(problem, stances, options, *args, **kwargs)
+        solved.append((problem.q0.copy(), plan, (options.threads, options.blas_threads)))
+        return plan
 
     monkeypatch.setattr(pipeline, "resolve_stances", recording)
     return solved
@@ -541,13 +543,14 @@ def test_a_case_runs_the_plans_later_stages_from_its_perturbed_start(tmp_path, m
         for stage in ("discover", "stance re-solve", "collision check")]
     assert record.attempts_used == runs  # one discovery solve per run
     assert max(abs(v) for v in record.offsets.values()) > 1e-3  # the start moved
-    for q0, _ in solved:
+    for q0, _, threads in solved:
         np.testing.assert_array_equal(q0, record.q0)
-    q0, plan = solved[-1]  # the last run's re-solve is the plan
+        assert threads == (1, 1)  # the case's threads, not the plan's 2
+    q0, plan, _ = solved[-1]  # the last run's re-solve is the plan
     assert record.objective == plan.cost
     assert stages[-2]["iterations"] == plan.iterations
     discovery = sum(a["iterations"] for a in record.extra["attempts"])  # every run's
-    assert record.iterations == discovery + sum(p.iterations for _, p in solved)
+    assert record.iterations == discovery + sum(p.iterations for _, p, _ in solved)
     assert len(record.extra["attempts"]) == runs
     assert record.success == plan.success
     assert record.status == "converged", record.failure
@@ -577,8 +580,9 @@ def test_a_given_contact_sequence_is_swept_from_perturbed_starts(tmp_path, monke
     record = solve_case(target, "task", SweepCase((), 0, 3), threads=1)
     assert [s["stage"] for s in record.extra["stages"]] == ["stance solve", "collision check"]
     assert max(abs(v) for v in record.offsets.values()) > 1e-3  # the start moved
-    (q0, plan), = solved
+    (q0, plan, threads), = solved
     np.testing.assert_array_equal(q0, record.q0)
+    assert threads == (1, 1)  # the case's threads, not the plan's 2
     assert record.objective == plan.cost and record.iterations == plan.iterations
     assert record.status == "converged" and record.success, record.failure
     assert "verification PASSED" in record.verification

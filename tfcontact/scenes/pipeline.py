@@ -115,6 +115,11 @@ class Stage(ABC):
         (a sweep, which perturbs the discovery's start, cannot run such a stage)."""
         return False
 
+    def with_threads(self, threads: int) -> Stage:
+        """This stage solving on `threads` threads (a sweep's case shares the cores with
+        others); default: unchanged."""
+        return self
+
 
 @dataclass(frozen=True)
 class Discover(Stage):
@@ -382,6 +387,10 @@ class StanceResolve(Stage):
     name: str = "stance re-solve"
     tasks: tuple[str, ...] | None = None
 
+    def with_threads(self, threads: int) -> Stage:
+        return dataclasses.replace(self, options=dataclasses.replace(
+            self.options or StanceOptions(), threads=threads, blas_threads=threads))
+
     def run(self, given: StageInput) -> PlanOutcome:
         result = discovered(given)
         found = given.previous
@@ -492,6 +501,10 @@ class GivenStances(Stage):
     @property
     def own_setup(self) -> bool:
         return True
+
+    def with_threads(self, threads: int) -> Stage:
+        return dataclasses.replace(self, options=dataclasses.replace(
+            self.options or StanceOptions(), threads=threads, blas_threads=threads))
 
     def run(self, given: StageInput) -> PlanOutcome:
         setup = self.build(given.task)

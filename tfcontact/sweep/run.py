@@ -53,13 +53,13 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
     given = target.given_sequence(task)
     if given is not None:  # no discovery: the sequence's solve from the perturbed start
         moved = dataclasses.replace(setup, problem=problem, options=options)
-        stage = dataclasses.replace(given, build=lambda _: moved)
+        stage = dataclasses.replace(given, build=lambda _: moved).with_threads(threads)
         outcome, stage_times = run_later_stages(target.name, task, (stage,), None)
         return CaseResult.from_stages(case, target.name, task, start,
                                       tuple(problem.system.cls.q_names), outcome,
                                       stage_times, time.perf_counter() - started,
                                       cpu_time=time.process_time() - cpu)
-    stages = target.later_stages(task)
+    stages = tuple(s.with_threads(threads) for s in target.later_stages(task))
     if not stages:
         result = solve_contact(problem, options, verbose=False)
         return CaseResult.from_contact(case, target.name, task, start, result,
