@@ -265,3 +265,17 @@ def test_a_verbose_homotopy_says_where_a_long_nlp_is(monkeypatch, capsys):
     assert "      NLP 2: iteration 1, " in out
     solver.solve(homotopy=Homotopy(tolerance=1e-9))
     assert capsys.readouterr().out == ""
+
+
+def test_progress_lines_count_from_the_last_line():
+    """A line on the clock (a minute since the last) restarts the count of iterations:
+    no second line a few iterations later at the next multiple of `every`."""
+    from tfcontact.mpcc.solver import IterationProgress
+
+    progress = IterationProgress(every=10, seconds=60.0)
+    assert [i for i in range(1, 25) if progress.due(i)] == [10, 20]
+    progress = IterationProgress(every=10, seconds=60.0)
+    lines = [i for i in range(1, 4) if progress.due(i)]
+    progress.last -= 61.0  # a minute passes during iteration 4
+    lines += [i for i in range(4, 25) if progress.due(i)]
+    assert lines == [4, 14, 24]

@@ -37,13 +37,15 @@ takes more than a second per iteration: 250 of them were six silent minutes)."""
 
 
 class IterationProgress:
-    """When a long NLP should say where it is: at every `every`-th iteration, or once
-    `seconds` have passed since its last line (`due`, called once per iteration)."""
+    """When a long NLP should say where it is: `every` iterations or `seconds` after its
+    last line (or its start), whichever comes first (`due`, called once per iteration),
+    so that a line on the clock is not followed by another a few iterations later."""
 
     def __init__(self, every: int | None = None, seconds: float | None = None) -> None:
         self.every = PROGRESS_EVERY if every is None else every
         self.seconds = PROGRESS_SECONDS if seconds is None else seconds
         self.start = self.last = time.perf_counter()
+        self.last_iteration = 0
 
     @property
     def elapsed(self) -> float:
@@ -52,8 +54,9 @@ class IterationProgress:
 
     def due(self, iteration: int) -> bool:
         now = time.perf_counter()
-        if iteration > 0 and (iteration % self.every == 0 or now - self.last >= self.seconds):
-            self.last = now
+        if iteration > 0 and (iteration - self.last_iteration >= self.every
+                              or now - self.last >= self.seconds):
+            self.last, self.last_iteration = now, iteration
             return True
         return False
 
