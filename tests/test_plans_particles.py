@@ -294,6 +294,16 @@ def test_warm_start_from_a_previous_plan():
                           initial_guess=cold, verbose=False)
     assert finer.success, finer.message
     assert finer.ocp.total_iterations < cold.ocp.total_iterations / 2
+    # a system whose NLP has other variables per stage (the inverse-dynamics form's
+    # accelerations) starts from the plan's boundary states, not its whole iterate
+    from tfcontact.timefreezing import Inelastic, time_freeze
+    from tfcontact.timefreezing.inelastic import InverseDynamics
+
+    inverse = time_freeze(problem.system.cls, method=Inelastic(dynamics=InverseDynamics()))
+    other = solve_contact(dataclasses.replace(problem, system=inverse),
+                          dataclasses.replace(options, homotopy=low), initial_guess=cold,
+                          verbose=False)
+    assert other.success, other.message
     with pytest.raises(InvalidInput, match="same system with N = 4 control intervals"):
         solve_contact(particle_friction_problem(n_intervals=4), options, initial_guess=cold,
                       verbose=False)

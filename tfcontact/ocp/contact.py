@@ -500,7 +500,8 @@ def transcribe(problem: ContactProblem) -> tuple[OptimalControlProblem, TimeFree
 
 
 def _warm_start(ocp: OptimalControlProblem, previous: ContactResult,
-                transcription: Transcription) -> tuple[OptimalControlProblem, np.ndarray | None]:
+                transcription: Transcription, system: TimeFreezingSystem
+                ) -> tuple[OptimalControlProblem, np.ndarray | None]:
     """The OCP with `previous` as its initial guess, and the previous MPCC iterate when the
     discretisation is the same (else None: the guess at the boundaries is interpolated)."""
     if not isinstance(previous, ContactResult):
@@ -518,8 +519,17 @@ def _warm_start(ocp: OptimalControlProblem, previous: ContactResult,
     disc = prev.build.discretization
     same = (disc.tableau.name == as_tableau(transcription.scheme).name
             and disc.grid.n_finite_elements == transcription.n_finite_elements
-            and disc.method == transcription.method)
+            and disc.method == transcription.method
+            and _variable_sizes(previous.system) == _variable_sizes(system))
     return guess, (prev.mpcc_result.w.copy() if same else None)
+
+
+def _variable_sizes(system: TimeFreezingSystem) -> tuple[int, ...]:
+    """What sizes a time-freezing system's NLP variables per stage: its states, controls,
+    steps alpha and auxiliary variables (the inverse-dynamics form's accelerations)."""
+    pss = system.pss
+    auxiliary = 0 if pss.auxiliary is None else pss.auxiliary.numel()
+    return pss.x.numel(), pss.u.numel(), pss.alpha.numel(), auxiliary
 
 
 def verify_plan(
@@ -593,7 +603,7 @@ def solve_contact(
                                   method=options.method)
     w0 = None
     if initial_guess is not None:
-        ocp_problem, w0 = _warm_start(ocp_problem, initial_guess, transcription)
+        ocp_problem, w0 = _warm_start(ocp_problem, initial_guess, transcription, system)
     attempts: list[Attempt] = []
     solves: list[tuple] = []
     totals = {"build": 0.0, "solve": 0.0, "verify": 0.0}
