@@ -122,6 +122,8 @@ def test_a_capped_nlp_solved_again_from_its_iterate_converges():
     assert runs[5].stances[2].start == pytest.approx(t2, abs=1e-7)
     with pytest.raises(InvalidInput, match="capped_restarts"):
         StanceOptions(capped_restarts=-1)
+    with pytest.raises(InvalidInput, match="step_error_restarts"):
+        StanceOptions(step_error_restarts=True)
     with pytest.raises(InvalidInput, match="`element_derivatives` must be True or False"):
         StanceOptions(element_derivatives="yes")
     with pytest.raises(InvalidInput, match="threads"):
@@ -655,3 +657,70 @@ def test_a_first_stance_whose_contacts_start_off_the_ground_is_refused():
     with pytest.raises(InvalidInput, match=r"closes contacts \[1\], but the start has them "
                                            r"0.1 m from the ground"):
         resolve_stances(lifted, stances, guess=guess, verbose=False)
+
+
+def test_an_nlp_stopped_by_a_step_error_is_solved_again_from_its_iterate(monkeypatch,
+                                                                         capsys):
+    """`step_error_restarts`: IPOPT's Error_In_Step_Computation (stood in for here: the
+    first solve, capped at 4 iterations, is reported so) is followed by solves from that
+    iterate (then capped restarts), which reach the closed forms; without a restart the
+    plan fails honestly."""
+    import tfcontact.ocp.stances as stances_module
+
+    class Stopped:  # a solution whose status is IPOPT's step error
+        def __init__(self, sol):
+            self.sol = sol
+
+        def stats(self):
+            return {**self.sol.stats(), "return_status": "Error_In_Step_Computation"}
+
+        def __getattr__(self, name):
+            return getattr(self.sol, name)
+
+    real = stances_module.solve_timed
+    calls = []
+
+    def first_stopped(opti, threads):
+        sol, *times = real(opti, threads)
+        calls.append(sol.stats()["iter_count"])
+        return (Stopped(sol) if len(calls) == 1 else sol, *times)
+
+    monkeypatch.setattr(stances_module, "solve_timed", first_stopped)
+    p, stances, guess, (t1, t2) = two_drops()
+    options = StanceOptions(tol=1e-10, max_iter=4, capped_restarts=5)
+    plan = resolve_stances(p, stances, options, guess=guess, verbose=True)
+    assert len(calls) >= 2 and plan.solved, plan.ipopt_status
+    out = capsys.readouterr().out
+    assert "stances: IPOPT stopped (Error_In_Step_Computation); solving again from its " \
+        "iterate (0 more such restarts allowed)" in out
+    assert out.count("    IPOPT started (") == len(calls)  # each solve says so
+    assert plan.stances[2].start == pytest.approx(t2, abs=1e-7)
+    calls.clear()
+    failed = resolve_stances(p, stances, dataclasses.replace(options, step_error_restarts=0),
+                             guess=guess, verbose=False)
+    assert len(calls) == 1 and failed.ipopt_status == "Error_In_Step_Computation"
+    assert not failed.success and failed.status == "nlp_failed"
+
+
+@pytest.mark.parametrize("rows", [True, False])
+def test_an_end_height_goal_is_kept_as_a_terminal_row(rows):
+    """`end_height_rows`: the lifting mass (above) asked to end at 5 cm (tolerance 2 cm)
+    by an `EndHeight` goal. With the row, the least-force plan ends on the row's lower
+    bound, 4 cm (half the tolerance below: the active row, the cost pulling it down);
+    without it the mass barely leaves the ground (the goal then missed)."""
+    from tfcontact.ocp.goals import EndHeight
+
+    p, stances, guess = lifting_mass(40.0)
+    q = ca.SX.sym("q", 4)
+    goal = EndHeight(1, 0.05, 0.02, ca.Function("z_low", [q], [q[3]]))
+    p = dataclasses.replace(p, goals=(goal,))
+    plan = resolve_stances(p, stances, StanceOptions(tol=1e-10, end_height_rows=rows),
+                           guess=guess, verbose=False)
+    assert plan.solved, plan.ipopt_status
+    if rows:
+        assert plan.x[-1, 3] == pytest.approx(0.04, abs=1e-6)
+        assert plan.verification.passed, plan.verification.summary()
+    else:
+        assert plan.x[:, 3].max() < 0.02
+    with pytest.raises(InvalidInput, match="end_height_rows"):
+        StanceOptions(end_height_rows=1)

@@ -55,6 +55,7 @@ import numpy as np
 from tfcontact.errors import InvalidInput, SolveFailed, nonnegative_number, positive_int
 from tfcontact.fesd.tableau import RadauIIA, lagrange_weights
 from tfcontact.ocp.contact import ContactProblem, ContactResult
+from tfcontact.ocp.goals import EndHeight
 from tfcontact.ocp.nodes import (
     CAPPED,
     NlpTiming,
@@ -84,6 +85,7 @@ from tfcontact.verify import (
 
 SOLVED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 INFEASIBLE = "Infeasible_Problem_Detected"
+STEP_ERROR = "Error_In_Step_Computation"
 RESTART_VELOCITY_TOLERANCE = 1e-6
 """The multi-contact reference's velocity tolerance [m/s] for a stance plan: a contact
 velocity this small counts as zero at a mode change (and is projected to zero). A closed
@@ -171,6 +173,11 @@ class StanceOptions:
             (a base reference, the legs at their start) lifts no foot, still steps rather
             than skims. False: a swing the guess does not lift keeps no row (a discovery's
             shuffle is not made a step).
+        end_height_rows: the problem's end-height goals (`EndHeight`: a contact ends
+            resting on a surface at a height) as terminal rows |z_low(T) - height| <=
+            tolerance / 2. The terminal gap row alone is met by any surface: biped-step's
+            re-solve, from a discovery that ended both feet on the step, ended them on the
+            ground before it (benchmarks/legged.md).
         swing_fallback: when IPOPT finds the NLP with swing-height rows locally
             infeasible, solve it once more without them (`StancePlan.swing_rows_dropped`;
             the task's goals then decide). The rows ask of the exact plan what a relaxed
@@ -200,6 +207,10 @@ class StanceOptions:
         tol, max_iter: IPOPT's.
         capped_restarts: solves of the same NLP again, each from the last one's primal-dual
             iterate, after IPOPT stopped at `max_iter` (each up to `max_iter` more).
+        step_error_restarts: the same after IPOPT stopped with Error_In_Step_Computation
+            (its regularisation of the KKT matrix ran out; a restart begins with its state
+            fresh). Measured on biped-step's re-solve: IPOPT stopped so after 1010
+            iterations at an iterate that already passed the reference.
         blas_threads: threads of IPOPT's BLAS during the solve (None: as set).
         end_state_tolerance, gap_tolerance, cone_tolerance: the verification's.
         budget: model evaluations of the multi-contact reference for the replay and all
@@ -230,12 +241,14 @@ class StanceOptions:
     swing_heights: tuple[float | None, ...] = ()
     swing_middle: bool = False
     swing_fallback: bool = True
+    end_height_rows: bool = True
     inverse_dynamics: bool = False
     element_derivatives: bool = True
     threads: int = 2
     tol: float = 1e-8
     max_iter: int = 3000
     capped_restarts: int = 0
+    step_error_restarts: int = 1
     blas_threads: int | None = 2
     end_state_tolerance: float = VerifyOptions.end_state_tolerance
     gap_tolerance: float = VerifyOptions.gap_tolerance
@@ -246,7 +259,7 @@ class StanceOptions:
     def __post_init__(self) -> None:
         if self.integrator not in ("rk4", "radau"):
             raise InvalidInput(f"`integrator` must be 'rk4' or 'radau', got {self.integrator!r}")
-        for name in ("swing_fallback", "swing_middle"):
+        for name in ("swing_fallback", "swing_middle", "end_height_rows"):
             if not isinstance(getattr(self, name), bool):
                 raise InvalidInput(f"`{name}` must be True or False, got "
                                    f"{getattr(self, name)!r}")
@@ -262,10 +275,10 @@ class StanceOptions:
         for name in ("nodes", "steps_per_node", "radau_stages", "max_iter", "budget",
                      "threads"):
             positive_int(getattr(self, name), name)
-        if (not isinstance(self.capped_restarts, int) or isinstance(self.capped_restarts, bool)
-                or self.capped_restarts < 0):
-            raise InvalidInput(f"`capped_restarts` must be an integer >= 0, got "
-                               f"{self.capped_restarts!r}")
+        for name in ("capped_restarts", "step_error_restarts"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+                raise InvalidInput(f"`{name}` must be an integer >= 0, got {value!r}")
         if self.blas_threads is not None:
             positive_int(self.blas_threads, "blas_threads")
         if not 0 < self.cone_margin <= 1:
@@ -1055,6 +1068,11 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                     continue
                 opti.subject_to(dyn.gaps(nodes[at][1])[i] >= h)
     y_end = y_of(x, horizon)
+    for goal in problem.goals if options.end_height_rows else ():
+        if isinstance(goal, EndHeight):  # half the goal's tolerance: a margin for its check
+            opti.subject_to(opti.bounded(goal.height - goal.tolerance / 2,
+                                         goal.lowest(x[:n_q]),
+                                         goal.height + goal.tolerance / 2))
     if terminal_fn is not None:
         size = terminal.expression.shape[0]
         opti.subject_to(opti.bounded(np.broadcast_to(terminal.lower, size), terminal_fn(y_end),
@@ -1070,7 +1088,8 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     iterations = 0
     build_time = time.perf_counter() - start
     evaluation_time = ipopt_time = 0.0
-    for restart in range(options.capped_restarts + 1):
+    restarts_left = {CAPPED: options.capped_restarts, STEP_ERROR: options.step_error_restarts}
+    while True:
         opti.solver("ipopt", plugin, ipopt)
         sol, building, in_ipopt, evaluations = solve_timed(opti, options.blas_threads)
         build_time += building  # each solve builds its solver
@@ -1079,14 +1098,15 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
         stats = sol.stats()
         status = str(stats.get("return_status", "unknown"))
         iterations += int(stats.get("iter_count", 0))
-        if status != CAPPED or restart == options.capped_restarts:
+        if not restarts_left.get(status):
             break
+        restarts_left[status] -= 1
         # the same NLP again from this primal-dual iterate, IPOPT's state (barrier, filter,
         # regularisation) fresh: a cold restart pushed the iterate back into the interior
         # (bolt's walk: objective 3.2 -> 6.8)
         if verbose:
-            print(f"stances: IPOPT's cap reached; solving again from its iterate "
-                  f"({restart + 1} of {options.capped_restarts})", flush=True)
+            print(f"stances: IPOPT stopped ({status}); solving again from its iterate "
+                  f"({restarts_left[status]} more such restarts allowed)", flush=True)
         opti.set_initial(sol.value_variables())
         opti.set_initial(opti.lam_g, sol.value(opti.lam_g))
         ipopt.update(warm_start_init_point="yes", mu_init=RESTART_PUSH,
