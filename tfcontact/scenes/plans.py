@@ -107,7 +107,6 @@ def task_plan(source: str | Path | Task) -> Plan:
     """
     from tfcontact.task import (
         Task,
-        build_task,
         load_task,
         resolve_path_rows,
         shipped_tasks,
@@ -134,42 +133,56 @@ def task_plan(source: str | Path | Task) -> Plan:
         path_rows=resolve_path_rows(data)))
 
     def build(_: str | None) -> PlanSetup:
-        from tfcontact.robot import Terrain
+        return _task_setup(data, data.exact_resolve)
 
-        setup = build_task(data)
-        terrain = setup.terrain if isinstance(setup.terrain, Terrain) else None
-        cls = setup.problem.system.cls
-
-        def from_start(q0: np.ndarray, v0: np.ndarray) -> Any:
-            # the task stated from there: its tracked splines begin at the new start
-            start = dict(zip((*cls.q_names, *cls.v_names),
-                             (float(v) for v in (*q0, *v0)), strict=True))
-            return build_task(dataclasses.replace(data, start=start)).problem
-
-        options = setup.options
-        if (data.exact_resolve and len(data.contacts) > 1
-                and isinstance(options.verify.replay, AutoReplay)
-                and MultiContactReplay.applies_to(cls)):
-            # the discovery's relaxed plan is the stance re-solve's guess, whose own
-            # verification decides: no FESD re-simulation when the multi-contact reference
-            # stops on it (solo12's jump: more than 15 minutes, after an 820 s discovery)
-            options = dataclasses.replace(options, verify=dataclasses.replace(
-                options.verify, replay=MultiContactReplay()))
-        return PlanSetup(setup.robot, setup.problem, options, setup.scene, terrain,
-                         start_ranges=dict(data.start_ranges) or None,
-                         from_start=from_start)
-
+    discover: tuple[Stage, ...] = (Discover(build),)
+    if data.continuation is not None:  # the other task's discovery first, then this one
+        before = data.continuation.task
+        discover = (Discover(lambda _: _task_setup(before, data.exact_resolve),
+                             name=f"discover {before.name}"),
+                    Discover(build, continue_sigma=data.continuation.sigma))
     if data.stances:  # the sequence is given: solved along it, no discovery
         return Plan(name=data.name, summary=data.description or origin,
                     tasks=("task",), stages=(GivenStances(
                         build, task_stances(data), resolve.options, resolve.path_rows),))
     if not data.exact_resolve:
         return Plan(name=data.name, summary=data.description or origin,
-                    tasks=("task",), stages=(Discover(build),))
+                    tasks=("task",), stages=discover)
     # the re-solved plan is the plan: a failed one runs the whole pipeline again
     runs = solver_options(data).attempts
     return Plan(name=data.name, summary=data.description or origin,
-                tasks=("task",), stages=(Discover(build), resolve), whole_attempts=runs)
+                tasks=("task",), stages=(*discover, resolve), whole_attempts=runs)
+
+
+def _task_setup(data: Task, exact_resolve: bool) -> PlanSetup:
+    """The `PlanSetup` of a task: its robot, problem, solver options, scene and terrain;
+    `exact_resolve`: a stance re-solve follows the discovery (whose verification is then
+    the multi-contact reference's alone)."""
+    from tfcontact.robot import Terrain
+    from tfcontact.task import build_task
+
+    setup = build_task(data)
+    terrain = setup.terrain if isinstance(setup.terrain, Terrain) else None
+    cls = setup.problem.system.cls
+
+    def from_start(q0: np.ndarray, v0: np.ndarray) -> Any:
+        # the task stated from there: its tracked splines begin at the new start
+        start = dict(zip((*cls.q_names, *cls.v_names),
+                         (float(v) for v in (*q0, *v0)), strict=True))
+        return build_task(dataclasses.replace(data, start=start)).problem
+
+    options = setup.options
+    if (exact_resolve and len(data.contacts) > 1
+            and isinstance(options.verify.replay, AutoReplay)
+            and MultiContactReplay.applies_to(cls)):
+        # the discovery's relaxed plan is the stance re-solve's guess, whose own
+        # verification decides: no FESD re-simulation when the multi-contact reference
+        # stops on it (solo12's jump: more than 15 minutes, after an 820 s discovery)
+        options = dataclasses.replace(options, verify=dataclasses.replace(
+            options.verify, replay=MultiContactReplay()))
+    return PlanSetup(setup.robot, setup.problem, options, setup.scene, terrain,
+                     start_ranges=dict(data.start_ranges) or None,
+                     from_start=from_start)
 
 
 def plan_named(name: str | Path | Task) -> Plan:

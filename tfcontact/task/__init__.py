@@ -26,6 +26,7 @@ from tfcontact.task.presets import SOLVER_PRESETS
 from tfcontact.task.solve import plan
 from tfcontact.task.spec import (
     ContactEntry,
+    Continuation,
     Costs,
     Goals,
     PlaneTerrain,
@@ -40,6 +41,7 @@ __all__ = [
     "SHIPPED",
     "SOLVER_PRESETS",
     "ContactEntry",
+    "Continuation",
     "Costs",
     "Goals",
     "PlaneTerrain",

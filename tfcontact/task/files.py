@@ -65,6 +65,7 @@ from tfcontact.robot.terrain import Box, Hole, Plane, Region, Terrain
 from tfcontact.task.spec import (
     RESOLVE_SETTINGS,
     ContactEntry,
+    Continuation,
     Costs,
     Goals,
     PlaneTerrain,
@@ -83,7 +84,7 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "guess", "a_n", "gap_scale", "exact_resolve",
         "complementarity_tolerance", "finite_elements", "friction_model", "periodic",
         "period", "period_from", "barrier", "resolve_elements", "resolve",
-        "start_ranges", "attempts", "stances", "ties"}
+        "start_ranges", "attempts", "stances", "ties", "continuation"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "clearance", "clearance_speed",
@@ -98,6 +99,7 @@ _PRIMITIVES: dict[str, tuple[type, set[str], tuple[str, ...]]] = {
 _GOALS = {"end", "tolerance", "progress", "lift_offs", "lift_height", "moves", "end_height",
           "height_tolerance", "flight", "flight_height"}
 _COSTS = {"tracking", "terminal", "control"}
+_CONTINUATION = {"task", "sigma"}
 
 
 def _table(data: object, where: str, keys: set[str], required: tuple[str, ...] = ()
@@ -182,10 +184,38 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         periodic=_listed(top.get("periodic", ()), "periodic"),
         period=top.get("period"), period_from=top.get("period_from", 0.0),
         ties=top.get("ties", {}),
+        continuation=_continuation(top.get("continuation"), folder),
         stances=tuple(StanceEntry(**_table(e, f"stances[{k}]", {"closed", "start"},
                                            ("closed", "start")))
                       for k, e in enumerate(stances)),
     )
+
+
+def _continuation(data: object, folder: Path | None) -> Continuation | None:
+    """A `[continuation]` table: `task` a shipped task's name or a task file (a path
+    relative to this file's folder), `sigma` optional."""
+    if data is None:
+        return None
+    table = _table(data, "continuation", _CONTINUATION, ("task",))
+    source = table["task"]
+    if not isinstance(source, str) or not source:
+        raise InvalidInput(f"`continuation.task` must name a shipped task or a task file, "
+                           f"got {source!r}")
+    if source.endswith(".toml"):
+        path = Path(source)
+        if folder is not None and not path.is_absolute():
+            path = folder / path
+    else:
+        shipped = shipped_tasks()
+        if source not in shipped:
+            raise InvalidInput(f"`continuation.task`: no shipped task `{source}`; shipped: "
+                               f"{', '.join(shipped)}, or a task file PATH.toml")
+        path = shipped[source]
+    try:
+        before = load_task(path)
+    except InvalidInput as error:
+        raise InvalidInput(f"`continuation.task`: {error}") from None
+    return Continuation(before, **{k: v for k, v in table.items() if k != "task"})
 
 
 def terrain_from_dict(data: object) -> PlaneTerrain | PrimitiveTerrain:

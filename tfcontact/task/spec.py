@@ -297,6 +297,37 @@ class StanceEntry:
 
 
 @dataclass(frozen=True)
+class Continuation:
+    """Where a task's discovery starts (`Task.continuation`, `[continuation]` in a file):
+    from another task's discovered plan, a homotopy in the task itself. The other task
+    (`task`: the same robot, contacts, horizon and control grid, e.g. the same walk on
+    flat ground) is discovered first from its own guess; its whole iterate is then the
+    guess of this task's homotopy, which starts at `sigma` (a relaxation near the one it
+    was solved at, so that the plan found is kept and moved, not forgotten).
+
+    Args:
+        task: the task discovered first (a `Task` with no continuation of its own).
+        sigma: the first relaxation of this task's homotopy from that plan.
+    """
+
+    task: Task
+    sigma: float = 1e-2
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.task, Task):
+            raise InvalidInput(f"`continuation.task` must be a Task (a task file or a "
+                               f"shipped task's name), got {type(self.task).__name__}")
+        if self.task.continuation is not None:
+            raise InvalidInput(f"`continuation.task` ({self.task.name}) has a continuation "
+                               "of its own; continue from the task it starts from instead")
+        if self.task.stances:
+            raise InvalidInput(f"`continuation.task` ({self.task.name}) gives its contact "
+                               "sequence (`stances`): it has no discovery to continue from")
+        object.__setattr__(self, "sigma", finite(self.sigma, "continuation.sigma", low=0.0,
+                                                 strict=True))
+
+
+@dataclass(frozen=True)
 class Goals:
     """What the plan must do, checked on its physical motion (`tfcontact.ocp.goals`).
 
@@ -485,6 +516,10 @@ class Task:
             steer the discovery only (like no-slip): the stance re-solve keeps the
             stances found, not the ties (a closed foot's contact rows would repeat its
             twin's).
+        continuation: a `Continuation`: the discovery starts from another task's
+            discovered plan (the same robot, contacts and grid), e.g. a walk up a step
+            from the same walk on flat ground, which the discovery from the standing
+            guess did not find (benchmarks/legged.md).
         description: a line for `tfcontact plan --list`.
     """
 
@@ -519,6 +554,7 @@ class Task:
     attempts: int | None = None
     stances: tuple[StanceEntry, ...] = ()
     ties: Mapping[str, str] = field(default_factory=dict)
+    continuation: Continuation | None = None
     description: str = ""
 
     def __post_init__(self) -> None:
@@ -623,6 +659,7 @@ class Task:
                 raise InvalidInput(f"`ties.{name}` must name another coordinate (\"-name\" "
                                    f"mirrored), got {other!r}")
         object.__setattr__(self, "ties", _frozen(ties))
+        self._check_continuation(frames)
         for name in ("resolve_elements", "resolve"):
             if getattr(self, name) and not self.stances and (
                     not self.exact_resolve or len(self.contacts) < 2):
@@ -635,6 +672,28 @@ class Task:
             object.__setattr__(self, "attempts", positive_int(self.attempts, "attempts"))
         if not isinstance(self.description, str):
             raise InvalidInput("`description` must be a string")
+
+    def _check_continuation(self, frames: list[str]) -> None:
+        before = self.continuation
+        if before is None:
+            return
+        if not isinstance(before, Continuation):
+            raise InvalidInput(f"`continuation` must be a Continuation ([continuation] with "
+                               f"task and sigma), got {before!r}")
+        if self.stances:
+            raise InvalidInput("`continuation` starts a discovery, and `stances` replace it; "
+                               "give one of them")
+        other = before.task
+        differs = [what for what, mine, theirs in (
+            ("robot", self.robot, other.robot),
+            ("contact frames", tuple(frames), tuple(c.frame for c in other.contacts)),
+            ("actuated joints", self.actuated, other.actuated),
+            ("horizon", self.horizon, other.horizon),
+            ("n_intervals", self.n_intervals, other.n_intervals)) if mine != theirs]
+        if differs:
+            raise InvalidInput(f"`continuation.task` ({other.name}) must plan the same robot "
+                               f"and contacts on the same grid, node by node; its "
+                               f"{', '.join(differs)} differ from this task's")
 
     def _check_stances(self, frames: list[str]) -> None:
         stances = tuple(self.stances)
