@@ -1470,3 +1470,14 @@ def test_a_continued_discovery_starts_from_the_plan_found_before(monkeypatch, tm
     assert continued.ocp.mpcc_result.history[0].sigma == pytest.approx(0.001)
     assert continued.problem.goals != first.problem.goals  # its own task (end x 0.03)
     assert summary["task_checks"]["passed"], summary["summary"]
+
+
+def test_a_plan_cannot_start_with_a_continued_discovery():
+    """A continued discovery needs the discovery it continues before it: a plan that puts
+    it first is refused when built, naming the fix."""
+    from tfcontact.scenes.pipeline import Discover, Plan
+
+    with pytest.raises(InvalidInput, match="put that discovery first"):
+        Plan("p", "", ("task",), (Discover(lambda _: None, continue_sigma=1e-2),))
+    with pytest.raises(InvalidInput, match="`continue_sigma` must be a number > 0"):
+        Discover(lambda _: None, continue_sigma=0.0)

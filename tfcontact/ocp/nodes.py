@@ -139,18 +139,18 @@ def report_progress(opti: ca.Opti) -> None:
     where it is."""
     progress = IterationProgress()
     # when the solve's set-up began: now for the first, at the last call for a solve again
-    last = [time.perf_counter()]
+    last = time.perf_counter()
 
     def report(i: int) -> None:
-        nonlocal progress
+        nonlocal progress, last
         if i == 0:
-            print(f"    IPOPT started ({time.perf_counter() - last[0]:.0f} s setting up its "
+            print(f"    IPOPT started ({time.perf_counter() - last:.0f} s setting up its "
                   "solver)", flush=True)
             progress = IterationProgress()  # each solve's lines count from its start
         elif progress.due(i):
             print(f"    iteration {i}: objective {float(opti.debug.value(opti.f)):.6g}, "
                   f"{progress.elapsed:.0f} s", flush=True)
-        last[0] = time.perf_counter()
+        last = time.perf_counter()
 
     opti.callback(report)
 

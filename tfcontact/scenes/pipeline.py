@@ -580,6 +580,10 @@ class Plan:
         if not self.stages or not all(isinstance(s, Stage) for s in self.stages):
             raise InvalidInput(f"plan `{self.name}` needs stages (Discover, ExactResolve, "
                                "...)")
+        first = self.stages[0]
+        if isinstance(first, Discover) and first.continue_sigma is not None:
+            raise InvalidInput(f"plan `{self.name}`: its first stage continues a discovery "
+                               "before it (`continue_sigma`); put that discovery first")
         if self.whole_attempts is not None:
             object.__setattr__(self, "whole_attempts",
                                positive_int(self.whole_attempts, "whole_attempts"))
