@@ -5,9 +5,11 @@
 
 Per task: the task build (URDF load, symbolic twin, terrain, contact problem:
 `build_task`), the NLP build and the solve (`solve_contact`, one attempt, the task's own
-preset), the verification and the coal collision check of the URDF's bodies against the
-terrain; the status, whether the plan is verified and meets its goals, and the build's
-share of the solve (issue 29 asks for below 20 %). Prints a markdown table and writes it.
+preset; a task with `[continuation]` first solves the task it continues and starts from
+that plan, both counted), the verification and the coal collision check of the URDF's
+bodies against the terrain; the status, whether the plan is verified and meets its
+goals, and the build's share of the solve (issue 29 asks for below 20 %). Prints a
+markdown table and writes it.
 """
 
 from __future__ import annotations
@@ -19,7 +21,8 @@ import platform
 import time
 from pathlib import Path
 
-COLUMNS = ("task", "DoF", "contacts", "task build [s]", "NLP build [s]", "solve [s]",
+COLUMNS = ("task", "continues", "DoF", "contacts", "task build [s]", "NLP build [s]",
+           "solve [s]",
            "build / solve", "IPOPT iterations", "verify [s]", "collision check [s]",
            "status", "verified", "goals met", "bodies clear")
 
@@ -36,20 +39,36 @@ def measure(name: str) -> dict:
     setup = build_task(task)
     task_build = time.perf_counter() - start
     options = dataclasses.replace(setup.options, attempts=1)
-    result = solve_contact(setup.problem, options, verbose=False, throw=False)
+    before, earlier_iterations = None, 0
+    earlier = {"build": 0.0, "solve": 0.0, "verify": 0.0}
+    if task.continuation is not None:  # the task it continues first, then from its plan
+        start = time.perf_counter()
+        other = build_task(task.continuation.task)
+        task_build += time.perf_counter() - start
+        before = solve_contact(other.problem, dataclasses.replace(other.options, attempts=1),
+                               verbose=False, throw=False)
+        earlier, earlier_iterations = before.timings, before.ocp.total_iterations
+        options = dataclasses.replace(options, homotopy=dataclasses.replace(
+            options.homotopy, sigma_0=task.continuation.sigma))
+    result = solve_contact(setup.problem, options, verbose=False, throw=False,
+                           initial_guess=before)
     clear, collision_time = None, float("nan")
     if isinstance(task.terrain, PrimitiveTerrain):
         start = time.perf_counter()
         report = check_robot_collisions(setup.robot, result.physical.t, result.physical.q,
                                         terrain_obstacles(task.terrain.terrain))
         collision_time, clear = time.perf_counter() - start, report.passed
-    build = task_build + result.timings["build"]
-    return {"task": task.name, "DoF": setup.robot.nq, "contacts": len(task.contacts),
-            "task build [s]": task_build, "NLP build [s]": result.timings["build"],
-            "solve [s]": result.timings["solve"],
-            "build / solve": f"{100 * build / result.timings['solve']:.0f} %",
-            "IPOPT iterations": result.ocp.total_iterations,
-            "verify [s]": result.timings["verify"], "collision check [s]": collision_time,
+    nlp_build = earlier["build"] + result.timings["build"]
+    solve = earlier["solve"] + result.timings["solve"]
+    build = task_build + nlp_build
+    return {"task": task.name,
+            "continues": "-" if task.continuation is None else task.continuation.task.name,
+            "DoF": setup.robot.nq, "contacts": len(task.contacts),
+            "task build [s]": task_build, "NLP build [s]": nlp_build, "solve [s]": solve,
+            "build / solve": f"{100 * build / solve:.0f} %",
+            "IPOPT iterations": earlier_iterations + result.ocp.total_iterations,
+            "verify [s]": earlier["verify"] + result.timings["verify"],
+            "collision check [s]": collision_time,
             "status": result.status, "verified": result.verification.passed,
             "goals met": result.task.passed,
             "bodies clear": "flat ground" if clear is None else clear}
