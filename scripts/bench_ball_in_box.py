@@ -60,6 +60,10 @@ VARIANTS: dict[str, Callable[[], ContactSolverOptions]] = {
                                                    warm_start_push=1e-9),
     "chosen + warm start + alpha_for_y=min": lambda: _with(
         box_circle_options(), warm_start_push=1e-9, options={**MEM, "alpha_for_y": "min"}),
+    "chosen + element derivatives": lambda: _with(box_circle_options(),
+                                                  element_derivatives=True, threads=1),
+    "chosen + element derivatives, 2 threads": lambda: _with(
+        box_circle_options(), element_derivatives=True, threads=2),
 }
 """The seed's settings, then one change at a time ("chosen" is `box_circle_options()`, the
 plan's; the last three were tried and left out: benchmarks/ball_in_box_speed.md)."""
