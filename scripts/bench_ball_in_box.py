@@ -66,7 +66,7 @@ VARIANTS: dict[str, Callable[[], ContactSolverOptions]] = {
         box_circle_options(), element_derivatives=True, threads=2),
 }
 """The seed's settings, then one change at a time ("chosen" is `box_circle_options()`, the
-plan's; the last three were tried and left out: benchmarks/ball_in_box_speed.md)."""
+plan's; the last five were tried and left out: benchmarks/ball_in_box_speed.md)."""
 
 
 def perturbed(problem: ContactProblem, noise: float, seed: int) -> ContactProblem:
