@@ -22,9 +22,8 @@ import time
 from pathlib import Path
 
 COLUMNS = ("task", "continues", "DoF", "contacts", "task build [s]", "NLP build [s]",
-           "solve [s]",
-           "build / solve", "IPOPT iterations", "verify [s]", "collision check [s]",
-           "status", "verified", "goals met", "bodies clear")
+           "solve [s]", "build / solve", "IPOPT iterations", "verify [s]",
+           "collision check [s]", "status", "verified", "goals met", "bodies clear")
 
 
 def measure(name: str) -> dict:
