@@ -29,6 +29,7 @@ COLUMNS = ("task", "continues", "DoF", "contacts", "task build [s]", "NLP build 
 def measure(name: str) -> dict:
     """One task, built and solved once (module docstring)."""
     from tfcontact.ocp.contact import solve_contact
+    from tfcontact.scenes.pipeline import solve_continued
     from tfcontact.task import build_task, load_task, shipped_tasks
     from tfcontact.task.spec import PrimitiveTerrain
     from tfcontact.verify.collision import check_robot_collisions, terrain_obstacles
@@ -38,7 +39,7 @@ def measure(name: str) -> dict:
     setup = build_task(task)
     task_build = time.perf_counter() - start
     options = dataclasses.replace(setup.options, attempts=1)
-    before, earlier_iterations = None, 0
+    earlier_iterations = 0
     earlier = {"build": 0.0, "solve": 0.0, "verify": 0.0}
     if task.continuation is not None:  # the task it continues first, then from its plan
         start = time.perf_counter()
@@ -47,10 +48,9 @@ def measure(name: str) -> dict:
         before = solve_contact(other.problem, dataclasses.replace(other.options, attempts=1),
                                verbose=False, throw=False)
         earlier, earlier_iterations = before.timings, before.ocp.total_iterations
-        options = dataclasses.replace(options, homotopy=dataclasses.replace(
-            options.homotopy, sigma_0=task.continuation.sigma))
-    result = solve_contact(setup.problem, options, verbose=False, throw=False,
-                           initial_guess=before)
+        result = solve_continued(setup.problem, options, before, task.continuation.sigma)
+    else:
+        result = solve_contact(setup.problem, options, verbose=False, throw=False)
     clear, collision_time = None, float("nan")
     if isinstance(task.terrain, PrimitiveTerrain):
         start = time.perf_counter()

@@ -163,15 +163,27 @@ class Discover(Stage):
                                    verbose=given.verbose)
             return discovery_outcome(result, setup)
         before = discovered(given)
-        options = dataclasses.replace(options, homotopy=dataclasses.replace(
-            options.homotopy, sigma_0=self.continue_sigma))
         if given.verbose:
             print(f"{self.name}: from the discovery before ({before.status}, objective "
                   f"{before.ocp.cost:.6g}), the homotopy from sigma = "
                   f"{self.continue_sigma:g}", flush=True)
         # the seed of a whole run perturbed the discovery before; this one starts from it
-        result = solve_contact(problem, options, initial_guess=before, verbose=given.verbose)
+        result = solve_continued(problem, options, before, self.continue_sigma,
+                                 verbose=given.verbose)
         return discovery_outcome(result, setup)
+
+
+def solve_continued(problem: ContactProblem, options: ContactSolverOptions,
+                    before: ContactResult, sigma: float, *, verbose: bool = False
+                    ) -> ContactResult:
+    """A discovery continued from `before`, another task's plan on the same robot and
+    grid (a task's `[continuation]`): its whole iterate the guess, the homotopy from
+    sigma_0 = `sigma` (`Discover(continue_sigma=...)`)."""
+    from tfcontact.ocp.contact import solve_contact
+
+    options = dataclasses.replace(options, homotopy=dataclasses.replace(
+        options.homotopy, sigma_0=sigma))
+    return solve_contact(problem, options, initial_guess=before, verbose=verbose)
 
 
 def run_stages(plan: str, task: str, stages: Sequence[Stage], out: Path, *,
