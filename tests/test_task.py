@@ -878,7 +878,10 @@ def test_the_platform_is_planned_from_the_steps_hop_verified_and_clear(tmp_path)
     failed in 461 s; continued, 19 s (its task file)."""
     import json
 
+    import pinocchio as pin
+
     from tfcontact.plan_format import load_trajectory
+    from tfcontact.robot import RobotSpec, load_robot
     from tfcontact.scenes.plans import run_plan
 
     report = run_plan("hopper-platform", tmp_path, verbose=False)
@@ -890,7 +893,14 @@ def test_the_platform_is_planned_from_the_steps_hop_verified_and_clear(tmp_path)
     assert summary["collisions"]["passed"]
     traj = load_trajectory(tmp_path / "trajectory.npz")
     assert traj.verification["passed"]
-    assert traj.q[-1, 0] > 0.7 + 0.05  # the base above the platform, beyond its face
+    # Pinocchio's foot at T (the file's radius 0.02 m): resting on the top (0.7-1.2 m,
+    # 0.1 m high), within the goal's half millimetre of gap, not on the ground before it
+    model = load_robot(RobotSpec.from_dict(traj.robot)).model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, traj.q[-1])
+    foot = data.oMf[model.getFrameId("foot")].translation
+    assert 0.7 + 0.01 < foot[0] < 1.2 - 0.01
+    assert abs(foot[2] - 0.02 - 0.1) <= 1e-3
 
 
 def test_the_readme_terrain_task_builds_and_models_what_the_foot_reaches():
