@@ -34,14 +34,14 @@ def load_script():
     return load
 
 
-# The suite's longest files, longest first (measured on 2 cores of a Zen 3 EPYC,
-# 2026-11-29, after the exact re-solve's element derivatives and hopper-platform's
-# continuation: the legged task plans about 18 minutes (solo12's jump 9.5, its trot and
-# bolt's short walk 4 each), the monoped's exact plans and Radau levels 4-5 each, the
-# hopper's plans 4, the task layer's own tests 4, the pipeline and the sweeps under 3
-# each). pytest-xdist hands out whole files in collection order (`--dist loadfile`), so
-# these go first: each starts on a worker of its own and the short files fill in beside
-# them, instead of two long files queuing on one worker at the end.
+# The suite's longest files, longest first (measured in the suite on 2 cores of a Zen 3
+# EPYC, 2026-11-29, 37.5 minutes in all: the legged task plans 27 minutes (solo12's jump
+# 15, its trot 7.7, bolt's short walk 3.9), the monoped's Radau levels 7, its exact plans
+# 6.5, the hopper's plans 5, the task layer's own tests 5, the pipeline and the sweeps 4
+# each; this order was not compared with another in one run). pytest-xdist hands out whole
+# files in collection order (`--dist loadfile`), so these go first: each starts on a
+# worker of its own and the short files fill in beside them, instead of two long files
+# queuing on one worker at the end.
 LONGEST_FIRST = ("test_task_legged_plans.py", "test_monoped_exact.py",
                  "test_monoped_radau_levels.py", "test_plans_hopper.py", "test_task.py",
                  "test_pipeline.py", "test_sweep.py")

@@ -113,7 +113,8 @@ class PolishOptions:
             (unless they depend on the time). A piece whose length a switch time sets gets
             its step length as a variable, and the node states enter the running cost as
             variables (the same values at a solution). Off by default: round-off
-            differs, and the re-solves' IPOPT paths depend on it.
+            differs, and the re-solves' IPOPT paths depend on it (the pipeline's exact
+            re-solve, `tfcontact.scenes.pipeline.ExactResolve`, turns it on).
         threads: threads that evaluate the element derivatives (CasADi's thread map).
         ldl: solve with M(q) and the contact's Delassus matrix by their LDL^T (no
             pivoting: both are positive definite) instead of CasADi's symbolic QR; the
