@@ -154,11 +154,11 @@ def main(argv: list[str] | None = None) -> int:
     add_sweep_parser(sub)
 
     args = parser.parse_args(argv)  # a usage error exits 2 here, with one line
-    from tfcontact.interrupt import raise_on_sigterm
+    from tfcontact.interrupt import stop_on_signals
 
-    raise_on_sigterm()  # SIGTERM stops a plan as Ctrl-C does: cleanly, exit 130
     try:
-        return args.func(args)
+        with stop_on_signals():  # SIGINT and SIGTERM stop a plan cleanly, exit 130
+            return args.func(args)
     except KeyboardInterrupt as error:
         if args.debug:
             raise

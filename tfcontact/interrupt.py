@@ -12,6 +12,14 @@ CasADi may also meet the handler's exception inside a function evaluation, where
 swallowed and IPOPT goes on (measured: the hopper's NLP then ran its remaining 4 s);
 `StopOnSignal` is an IPOPT iteration callback that ends the NLP at the next iteration once
 a signal was recorded, whatever happened to the exception.
+
+Outside `guard()` blocks Python's own KeyboardInterrupt can be lost the same way: CasADi's
+argument conversion (`DM_from_array` in casadi.py) catches every exception with a bare
+`except:` (measured: of 300 SIGINTs sent during calls with numpy arguments, 10 were lost;
+`tfcontact plan hopper` once exited 0 after a SIGINT between its NLPs, under load).
+`stop_on_signals()`, for command-line entry points, remembers each signal for the whole
+program, so that the next `guard()` or `raise_if_signalled()` (before a plan's output is
+published) stops it even when the exception itself was swallowed.
 """
 
 from __future__ import annotations
@@ -30,6 +38,8 @@ from tfcontact.errors import Interrupted
 _CASADI_MODULE = os.path.join("casadi", "casadi.py")
 # The signal recorded by the innermost active `guard()` (None: none), read by StopOnSignal.
 _pending: list[int] = []
+# Signals recorded by `stop_on_signals()`'s handler, kept until its block ends.
+_received: list[int] = []
 
 
 class _Caught:
@@ -54,7 +64,7 @@ def guard() -> Iterator[_Caught]:
 
     Raises:
         Interrupted: a signal arrived inside the block (also when the native call caught
-            the handler's exception and returned).
+            the handler's exception and returned), or before it inside `stop_on_signals()`.
     """
     caught = _Caught()
     if threading.current_thread() is not threading.main_thread():
@@ -65,13 +75,12 @@ def guard() -> Iterator[_Caught]:
     def handler(signum: int, frame: FrameType | None) -> None:
         caught.signal_number = signum
         _pending.append(signum)
-        if frame is not None and frame.f_code.co_filename.endswith(_CASADI_MODULE):
-            # Inside CasADi's own Python glue (argument conversion) an exception is
-            # "ignored" with a printed traceback (Python 3.13); StopOnSignal and the
-            # check on leaving the block stop the solve instead.
+        if _in_casadi_glue(frame):
+            # StopOnSignal and the check on leaving the block stop the solve instead.
             return
         raise Interrupted(signum)
 
+    raise_if_signalled()
     _pending.clear()
     previous = {s: signal.signal(s, handler) for s in _guarded_signals()}
     try:
@@ -90,6 +99,12 @@ def guard() -> Iterator[_Caught]:
         _pending.clear()
     if caught.signal_number is not None:
         raise Interrupted(caught.signal_number)
+
+
+def _in_casadi_glue(frame: FrameType | None) -> bool:
+    # Inside CasADi's own Python glue (argument conversion) an exception is swallowed by a
+    # bare `except:` or "ignored" with a printed traceback (Python 3.13).
+    return frame is not None and frame.f_code.co_filename.endswith(_CASADI_MODULE)
 
 
 class StopOnSignal(ca.Callback):
@@ -127,12 +142,37 @@ class StopOnSignal(ca.Callback):
         return [1 if _pending else 0]
 
 
-def raise_on_sigterm() -> None:
-    """Make SIGTERM stop the program as Ctrl-C does (an `Interrupted` exception), so that
-    a terminated plan cleans up like an interrupted one. For command-line entry points."""
+@contextmanager
+def stop_on_signals() -> Iterator[None]:
+    """For command-line entry points: inside the block SIGINT and SIGTERM raise
+    `Interrupted` (a terminated plan cleans up like an interrupted one), and each signal is
+    remembered until the block ends, so that one whose exception a native call swallowed
+    still stops the program at the next `guard()` or `raise_if_signalled()`."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
 
     def handler(signum: int, frame: FrameType | None) -> None:
-        raise Interrupted(signum)
+        _received.append(signum)
+        if not _in_casadi_glue(frame):  # there the exception would be swallowed
+            raise Interrupted(signum)
 
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, handler)
+    _received.clear()
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+        _received.clear()
+
+
+def raise_if_signalled() -> None:
+    """Raise `Interrupted` if `stop_on_signals()` recorded a signal (whose exception may
+    have been swallowed on its way up); nothing outside such a block.
+
+    Raises:
+        Interrupted: for the last signal recorded.
+    """
+    if _received:
+        raise Interrupted(_received[-1])

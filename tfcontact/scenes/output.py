@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from tfcontact.errors import InvalidInput
+from tfcontact.interrupt import raise_if_signalled
 
 
 def _nearest_existing(path: Path) -> Path:
@@ -86,6 +87,8 @@ class OutputFolder:
                                f"{error.strerror}; give a writable folder with --out") from error
         try:
             yield stage
+            # A signal whose exception a native call swallowed still keeps the old folder.
+            raise_if_signalled()
         except BaseException:
             shutil.rmtree(stage, ignore_errors=True)
             raise
