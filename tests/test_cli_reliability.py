@@ -140,6 +140,33 @@ def test_a_signal_casadi_swallows_still_stops_the_next_nlp_and_keeps_the_old_fol
         pass
 
 
+def test_a_signal_between_the_renames_waits_until_the_new_plan_is_in_place(tmp_path,
+                                                                           monkeypatch):
+    """Replacing a plan is two renames (the old folder aside, the new one in place); a
+    SIGINT after the first would leave no folder where the plan belongs. It is held back
+    until both are done, then raised."""
+    out = tmp_path / "hop"
+    out.mkdir()
+    (out / "summary.json").write_text("earlier plan")
+    rename = os.rename
+    renames = []
+
+    def rename_then_signal(source, destination):
+        rename(source, destination)
+        renames.append(destination)
+        if len(renames) == 1:
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(100):  # Python would run the handler between these bytecodes
+                pass
+
+    monkeypatch.setattr(os, "rename", rename_then_signal)
+    with pytest.raises(KeyboardInterrupt), OutputFolder(out, force=True).staging() as stage:
+        (stage / "summary.json").write_text("new plan")
+    assert len(renames) == 2
+    assert (out / "summary.json").read_text() == "new plan"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["hop"]
+
+
 def test_the_command_line_gives_the_signal_handlers_back(tmp_path):
     """`main` handles SIGINT and SIGTERM only while it runs (a caller's, e.g. a notebook's,
     are back afterwards)."""

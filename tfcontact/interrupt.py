@@ -167,6 +167,30 @@ def stop_on_signals() -> Iterator[None]:
         _received.clear()
 
 
+@contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back inside the block (a few file renames that must happen
+    together): one that arrives is raised again when the block ends, to the handlers
+    before it. (Python-level, not the thread's signal mask: the kernel may hand a signal
+    to any of IPOPT's or BLAS's threads.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+
+    def hold(signum: int, frame: FrameType | None) -> None:
+        held.append(signum)
+
+    previous = {s: signal.signal(s, hold) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+    for signum in dict.fromkeys(held):
+        signal.raise_signal(signum)
+
+
 def raise_if_signalled() -> None:
     """Raise `Interrupted` if `stop_on_signals()` recorded a signal (whose exception may
     have been swallowed on its way up); nothing outside such a block.

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from tfcontact.errors import InvalidInput
-from tfcontact.interrupt import raise_if_signalled
+from tfcontact.interrupt import raise_if_signalled, signals_deferred
 
 
 def _nearest_existing(path: Path) -> Path:
@@ -103,9 +103,12 @@ class OutputFolder:
             os.rename(stage, target)
             return
         aside = Path(tempfile.mkdtemp(prefix=f".{target.name}.replaced-", dir=target.parent))
-        os.rename(target, aside / target.name)
-        os.rename(stage, target)
-        shutil.rmtree(aside, ignore_errors=True)
+        # A Ctrl-C between the two renames would leave no folder at the target, and one
+        # before the removal the old plan aside: it waits.
+        with signals_deferred():
+            os.rename(target, aside / target.name)
+            os.rename(stage, target)
+            shutil.rmtree(aside, ignore_errors=True)
 
     def final_path(self, path: Path, stage: Path) -> Path:
         """Where a file written below `stage` lies after `publish`."""
