@@ -49,10 +49,18 @@ class _Caught:
         self.signal_number: int | None = None
 
 
+def _not_ignored(signals: tuple[signal.Signals, ...]) -> list[signal.Signals]:
+    # A signal the program started with ignored stays ignored, as Python leaves it: a
+    # background job of a shell script starts with SIGINT ignored so that Ctrl-C on the
+    # script's terminal does not reach it (before, the guard took SIGINT during NLPs
+    # only, so such a plan stopped or went on depending on when the signal came).
+    return [s for s in signals if signal.getsignal(s) is not signal.SIG_IGN]
+
+
 def _guarded_signals() -> list[signal.Signals]:
     # SIGTERM only where the program chose to handle it (the command line does): a
     # library call must not change what SIGTERM does to a user's process.
-    chosen = [signal.SIGINT]
+    chosen = _not_ignored((signal.SIGINT,))
     if callable(signal.getsignal(signal.SIGTERM)):
         chosen.append(signal.SIGTERM)
     return chosen
@@ -60,7 +68,8 @@ def _guarded_signals() -> list[signal.Signals]:
 
 @contextmanager
 def guard() -> Iterator[_Caught]:
-    """Run a native call so that SIGINT (and SIGTERM where handled) stops it.
+    """Run a native call so that SIGINT (unless ignored) and SIGTERM (where handled)
+    stop it.
 
     Raises:
         Interrupted: a signal arrived inside the block (also when the native call caught
@@ -144,10 +153,11 @@ class StopOnSignal(ca.Callback):
 
 @contextmanager
 def stop_on_signals() -> Iterator[None]:
-    """For command-line entry points: inside the block SIGINT and SIGTERM raise
-    `Interrupted` (a terminated plan cleans up like an interrupted one), and each signal is
-    remembered until the block ends, so that one whose exception a native call swallowed
-    still stops the program at the next `guard()` or `raise_if_signalled()`."""
+    """For command-line entry points: inside the block SIGINT and SIGTERM (unless the
+    program started with them ignored) raise `Interrupted` (a terminated plan cleans up
+    like an interrupted one), and each signal is remembered until the block ends, so that
+    one whose exception a native call swallowed still stops the program at the next
+    `guard()` or `raise_if_signalled()`."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -158,7 +168,8 @@ def stop_on_signals() -> Iterator[None]:
             raise Interrupted(signum)
 
     _received.clear()
-    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = {s: signal.signal(s, handler)
+                for s in _not_ignored((signal.SIGINT, signal.SIGTERM))}
     try:
         yield
     finally:
@@ -181,7 +192,8 @@ def signals_deferred() -> Iterator[None]:
     def hold(signum: int, frame: FrameType | None) -> None:
         held.append(signum)
 
-    previous = {s: signal.signal(s, hold) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = {s: signal.signal(s, hold)
+                for s in _not_ignored((signal.SIGINT, signal.SIGTERM))}
     try:
         yield
     finally:
