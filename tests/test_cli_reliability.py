@@ -128,11 +128,11 @@ class _SignalledInConversion(np.ndarray):
 def test_a_signal_casadi_swallows_still_stops_the_next_nlp_and_keeps_the_old_folder(
         tmp_path, sigint_handled):
     """With Python's own handler a SIGINT inside CasADi's argument conversion is lost: the
-    call returns as if nothing happened (measured: `plan hopper` under load once exited 0
-    after a SIGINT between its NLPs; 10 of 300 SIGINTs during calls with numpy arguments
-    lost). Under `stop_on_signals()` (the command line's) the signal is remembered: the
-    next guarded native call does not start, a plan's output folder being written keeps
-    its old content, and the handlers and the record are gone after the block."""
+    call returns as if nothing happened (measured: 10 of 300 SIGINTs sent during calls
+    with numpy arguments lost). Under `stop_on_signals()` (the command line's) the signal
+    is remembered: the next guarded native call does not start, a plan's output folder
+    being written keeps its old content, and the handlers and the record are gone after
+    the block."""
     x = ca.SX.sym("x", 3)
     double = ca.Function("double", [x], [2 * x])
     before = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)

@@ -15,8 +15,7 @@ a signal was recorded, whatever happened to the exception.
 
 Outside `guard()` blocks Python's own KeyboardInterrupt can be lost the same way: CasADi's
 argument conversion (`DM_from_array` in casadi.py) catches every exception with a bare
-`except:` (measured: of 300 SIGINTs sent during calls with numpy arguments, 10 were lost;
-`tfcontact plan hopper` once exited 0 after a SIGINT between its NLPs, under load).
+`except:` (measured: of 300 SIGINTs sent during calls with numpy arguments, 10 were lost).
 `stop_on_signals()`, for command-line entry points, remembers each signal for the whole
 program, so that the next `guard()` or `raise_if_signalled()` (before a plan's output is
 published) stops it even when the exception itself was swallowed.
