@@ -167,13 +167,10 @@ def stop_on_signals() -> Iterator[None]:
             raise Interrupted(signum)
 
     _received.clear()
-    previous = {s: signal.signal(s, handler)
-                for s in _not_ignored((signal.SIGINT, signal.SIGTERM))}
     try:
-        yield
+        with _handled_by(handler, _not_ignored((signal.SIGINT, signal.SIGTERM))):
+            yield
     finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
         _received.clear()
 
 
@@ -191,15 +188,24 @@ def signals_deferred() -> Iterator[None]:
     def hold(signum: int, frame: FrameType | None) -> None:
         held.append(signum)
 
-    previous = {s: signal.signal(s, hold)
-                for s in _not_ignored((signal.SIGINT, signal.SIGTERM))}
+    try:
+        with _handled_by(hold, _not_ignored((signal.SIGINT, signal.SIGTERM))):
+            yield
+    finally:  # also after an error inside: the user's Ctrl-C still counts
+        for signum in dict.fromkeys(held):
+            signal.raise_signal(signum)
+
+
+@contextmanager
+def _handled_by(handler: Callable[[int, FrameType | None], None],
+                signals: list[signal.Signals]) -> Iterator[None]:
+    """`handler` for `signals` inside the block, the handlers before it afterwards."""
+    previous = {s: signal.signal(s, handler) for s in signals}
     try:
         yield
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
-    for signum in dict.fromkeys(held):
-        signal.raise_signal(signum)
 
 
 def raise_if_signalled() -> None:
