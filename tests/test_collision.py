@@ -645,6 +645,20 @@ def test_a_plan_through_the_terrain_is_not_a_success(leg, tmp_path, monkeypatch)
     report = plans.run_plan("leg", tmp_path / "clear", verbose=False)
     assert (report.success, report.status) == (True, "converged")
 
+    # A plan that failed already keeps its first cause (measured: the reduced monoped's
+    # discovery at IPOPT's cap, its iterate 5 mm in the ground, was reported "collision").
+    def solve_failed():
+        return PlanOutcome(_trajectory(path, q, t, scene), robot, "nlp_failed", False,
+                           "IPOPT: Maximum_Iterations_Exceeded")
+
+    monkeypatch.setitem(plans.PLANS, "leg", Plan("leg", "a leg", ("only",),
+                                                    (Given(solve_failed),)))
+    report = plans.run_plan("leg", tmp_path / "failed", verbose=False)
+    assert (report.success, report.status) == (False, "nlp_failed")
+    assert "Maximum_Iterations_Exceeded" in report.summary and "knee_0" in report.summary
+    summary = json.loads((tmp_path / "failed" / "summary.json").read_text())
+    assert summary["status"] == "nlp_failed" and summary["collisions"]["passed"] is False
+
 
 def _l_bracket_obj(path):
     """Two overlapping closed boxes as one mesh, an L in the x-z plane: a bottom bar

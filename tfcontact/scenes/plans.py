@@ -326,9 +326,11 @@ def check_collisions(outcome: PlanOutcome) -> tuple[PlanOutcome, dict, Any]:
 
     Returns:
         The outcome (failed with status "collision" when a body goes through the terrain
-        or the robot: a physical, verified plan whose knee or base does is not a plan, and
-        the body and time are added to its summary), the report as a dict for
-        summary.json, and the `CollisionReport` (None when nothing was checked)."""
+        or the robot: a physical, verified plan whose knee or base does is not a plan; an
+        outcome that failed already keeps its status, the first cause, e.g. a discovery's
+        nlp_failed whose iterate lies in the ground; the body and time are added to the
+        summary either way), the report as a dict for summary.json, and the
+        `CollisionReport` (None when nothing was checked)."""
     from tfcontact.viz.collision_figure import trajectory_collisions
 
     if outcome.trajectory is None:
@@ -340,6 +342,6 @@ def check_collisions(outcome: PlanOutcome) -> tuple[PlanOutcome, dict, Any]:
     collisions = report.to_dict()
     if collisions.get("passed") is False:
         outcome = dataclasses.replace(
-            outcome, success=False, status=COLLISION,
+            outcome, success=False, status=COLLISION if outcome.success else outcome.status,
             summary=f"{outcome.summary}\ncollisions FAILED: {collisions['worst']}")
     return outcome, collisions, report
