@@ -346,7 +346,8 @@ def test_a_failed_re_solve_whose_node_times_run_back_is_written_as_failed(
     "(contact sequence stick only, lift-offs 0 of 1, the foot 5 mm through the ground "
     "at 0.59 s), so the exact re-solve did not start: status collision, exit code 1; "
     "in a later run there its homotopy capped (nlp_failed, 7150 IPOPT iterations) and "
-    "restarts from seeds 1 and 2 found no single hop. It hopped and was verified on the "
+    "restarts from seeds 1 and 2 found no single hop (a failed discovery is now reported "
+    "with its own status, nlp_failed, not collision). It hopped and was verified on the "
     "machines first measured"))
 def test_reduced_monoped_exact_plan_hops_over_the_hole(tmp_path):
     """`tfcontact plan monoped --task reduced`: the time-freezing homotopy from the
