@@ -16,6 +16,20 @@ def test_plan_list_names_the_hopper(capsys):
     assert "monoped" in out and "--task reduced" in out and "exact re-solve" in out
 
 
+def test_plan_list_starts_every_summary_in_one_column(capsys):
+    """Names longer than the old fixed width (quadruped-jump-schedule) ran into their
+    summaries; every summary now starts after the longest name."""
+    from tfcontact.task import shipped_tasks
+
+    assert main(["plan", "--list"]) == 0
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("  ")]
+    names = [*PLANS, *shipped_tasks()]
+    assert len(rows) == len(names)
+    width = max(map(len, names))
+    for row, name in zip(rows, names, strict=True):
+        assert row.startswith(f"  {name} ") and row[2 + width] == " " and row[3 + width] != " "
+
+
 def test_monoped_plan_is_tf9_from_the_urdf():
     """The CLI's monoped plan solves TF-9 from the URDF in three stages (the reduced hop
     discovered, re-solved exactly, tiled for the full task and re-solved): the full task by

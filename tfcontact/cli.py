@@ -63,12 +63,14 @@ def _plan(args: argparse.Namespace) -> int:
     from tfcontact.task import shipped_tasks
 
     if args.list or args.name is None:
+        tasks = shipped_tasks()
+        width = max(map(len, [*PLANS, *tasks]))  # one column for both lists
         print("Available plans:")
         for name, plan in PLANS.items():
-            print(f"  {name:16s} {plan.summary}")
+            print(f"  {name:{width}s} {plan.summary}")
         print("Shipped task files (tfcontact plan NAME, or any PATH.toml of your own):")
-        for name in shipped_tasks():
-            print(f"  {name:16s} {task_plan(name).summary}")
+        for name in tasks:
+            print(f"  {name:{width}s} {task_plan(name).summary}")
         return EXIT_OK if args.list else EXIT_USAGE
     out = Path(args.out) if args.out else Path("out") / Path(args.name).stem
     report = run_plan(args.name, out, task=args.task, attempts=args.attempts,
