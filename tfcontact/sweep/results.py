@@ -42,6 +42,13 @@ class CaseFileError(TfcontactError):
     """A case file is unreadable or belongs to another sweep."""
 
 
+def _recorded(value: float | None) -> float:
+    """A figure as a trajectory records it: NaN when missing or null (the plan format
+    writes a non-finite float as null, e.g. the end-state deviation of a replay that
+    stopped before T)."""
+    return math.nan if value is None else float(value)
+
+
 @dataclass(frozen=True)
 class CaseResult:
     """What one case of a sweep did.
@@ -187,8 +194,8 @@ class CaseResult:
             first_attempt_success=success and self.attempts_used == 1,
             # the discovery's entry has no iterations: its attempts counted them
             iterations=self.iterations + sum(int(s.get("iterations", 0)) for s in stages),
-            objective=float(solver.get("objective", math.nan)),
-            end_state_deviation=float(verification.get("end_state_deviation", math.nan)),
+            objective=_recorded(solver.get("objective")),
+            end_state_deviation=_recorded(verification.get("end_state_deviation")),
             failure=failure, failure_kind=kind,
             # the last stage's verdict: its line may carry the stage's prefix
             # ("stances: verification PASSED ...")
