@@ -224,6 +224,8 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
     assert failed.failure_kind == "stance re-solve: nlp_failed"
     assert failed.failure == "task: all goals met"  # no line says FAILED: the last one
     assert (failed.iterations, failed.objective, failed.end_state_deviation) == (3800, 3.2, 0.7)
+    # the re-solve's verdict, as `StancePlan.summary` words it
+    assert failed.verification == "stances: verification PASSED (multi-contact): ..."
     # a replay that stopped before T: its deviation (inf) is written as null in the
     # trajectory; the case keeps its record (before: float(None) raised, and the sweep
     # saved a 40-minute solo12 trot case as an error with none of its figures)
@@ -233,8 +235,6 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
     kept = found.after_stages(stopped, stages)
     assert kept.status == "verification_failed" and kept.iterations == 3800
     assert math.isnan(kept.objective) and math.isnan(kept.end_state_deviation)
-    # the re-solve's verdict, as `StancePlan.summary` words it
-    assert failed.verification == "stances: verification PASSED (multi-contact): ..."
     stages[1]["status"], stages[2]["status"] = "converged", "penetration"
     through = NS(trajectory=trajectory, status="collision", success=False, task={},
                  summary="stances: converged\ncollisions FAILED: FL_LOWER_LEG 3 mm in the "
