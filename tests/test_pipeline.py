@@ -251,3 +251,73 @@ def test_the_stance_re_solve_keeps_the_lift_off_goals_heights():
     assert lift_off_heights(goals, 3) == (None, 0.05 + LIFT_OFF_MARGIN,
                                           0.03 + LIFT_OFF_MARGIN)
     assert lift_off_heights(goals[:1], 3) == ()
+
+
+def test_the_stance_re_solve_follows_a_discovery_stopped_short_only_within_its_residual(
+        tmp_path):
+    """A discovery whose homotopy stopped short (nlp_failed, not_converged) proposes its
+    stances only with `StanceOptions.discovery_residual` set and its last solved NLP's
+    complementarity residual within it; otherwise the stage does not start, keeps the
+    discovery's outcome and says why (the option named). A converged discovery is always
+    followed."""
+    import math
+    import types
+
+    from tfcontact.ocp.stances import StanceOptions
+    from tfcontact.scenes.pipeline import PlanSetup, StanceResolve, discovery_refusal
+
+    def discovery(status, residual):
+        return types.SimpleNamespace(status=status, ocp=types.SimpleNamespace(
+            success=status == "converged", residual=residual))
+
+    loose, tight = StanceOptions(discovery_residual=1e-2), StanceOptions(discovery_residual=1e-3)
+    assert discovery_refusal(discovery("converged", 1e-4), StanceOptions()) is None
+    assert discovery_refusal(discovery("nlp_failed", 3e-3), loose) is None
+    assert discovery_refusal(discovery("not_converged", 1e-2), loose) is None
+    assert "did not converge (nlp_failed); `discovery_residual` lets" in discovery_refusal(
+        discovery("nlp_failed", 3e-3), StanceOptions())
+    assert "residual 0.003 exceeds `discovery_residual` = 0.001" in discovery_refusal(
+        discovery("nlp_failed", 3e-3), tight)
+    assert discovery_refusal(discovery("nlp_failed", math.nan), loose) is not None
+    for bad in (0.0, -1.0, math.inf, True, "0.01"):
+        with pytest.raises(InvalidInput, match="`discovery_residual` must be None or"):
+            StanceOptions(discovery_residual=bad)
+
+    before = PlanOutcome("trajectory", None, "nlp_failed", False, "discovered",
+                         result=discovery("nlp_failed", 3e-3),
+                         setup=PlanSetup(None, None, None, {}))
+    outcome = StanceResolve(tight).run(StageInput("p", "t", tmp_path, False, None, before))
+    assert (outcome.status, outcome.success, outcome.trajectory) == (
+        "nlp_failed", False, "trajectory")
+    assert outcome.summary.startswith("discovered\nstance re-solve not started: the "
+                                      "discovery's homotopy did not converge (nlp_failed)")
+
+
+@pytest.mark.slow
+def test_a_stance_re_solve_makes_a_verified_plan_from_a_discovery_cut_short(tmp_path):
+    """The strider's discovery cut after two NLPs (sigma 1 and 0.1: not_converged, the
+    relaxed plan 18 from the reference at T) proposes its stances, and the stance re-solve
+    along them makes a plan that the multi-contact reference verifies and that does the
+    task; the discovery's status stays in the summary (measured: both feet down, then
+    a flight from 0.05 s; 41 IPOPT iterations)."""
+    import dataclasses
+
+    from strider import write_strider
+
+    from tfcontact.scenes.plans import run_checked, task_plan
+
+    discover, resolve = task_plan(str(write_strider(tmp_path))).stages
+
+    def cut(task):
+        setup = discover.build(task)
+        options = setup.options
+        return dataclasses.replace(setup, options=dataclasses.replace(
+            options, attempts=1, homotopy=dataclasses.replace(options.homotopy, max_nlps=2)))
+
+    stages = (Discover(cut), dataclasses.replace(resolve, options=dataclasses.replace(
+        resolve.options, discovery_residual=0.2)))
+    outcome, _, _, _ = run_checked("strider", "task", stages, tmp_path / "out")
+    assert outcome.result is None  # the stance re-solve's outcome, not the discovery's
+    assert outcome.summary.startswith("discovery: not_converged\nstances: converged")
+    assert "verification PASSED" in outcome.summary and "task: done" in outcome.summary
+    assert (outcome.status, outcome.success) == ("converged", True)

@@ -1074,17 +1074,20 @@ def test_a_task_sets_the_stance_resolve_in_its_resolve_table(tmp_path):
     path = tmp_path / "walk.toml"
     path.write_text(shipped.read_text() + "\n[resolve]\ncone_facets = 4\n"
                     "min_normal_force = 1.5\ntouchdown_speed = 0.1\ninterior_rows = 1\n"
-                    "contact_tolerance = 1e-6\ncone_margin = 0.9\n")
+                    "contact_tolerance = 1e-6\ncone_margin = 0.9\ndiscovery_residual = 0.02\n")
     options = task_plan(path).stages[-1].options
     assert (options.cone_facets, options.min_normal_force, options.touchdown_speed,
-            options.interior_rows, options.contact_tolerance, options.cone_margin) == (
-        4, 1.5, 0.1, 1, 1e-6, 0.9)
+            options.interior_rows, options.contact_tolerance, options.cone_margin,
+            options.discovery_residual) == (4, 1.5, 0.1, 1, 1e-6, 0.9, 0.02)
+    assert task_plan(shipped).stages[-1].options.discovery_residual is None
     assert options.open_slip_gains  # the task's own settings stay
     task = load_task(path)
     with pytest.raises(InvalidInput, match="unknown keys \\['tol'\\]"):
         dataclasses.replace(task, resolve={"tol": 1e-3})
     with pytest.raises(InvalidInput, match="cone_facets"):
         dataclasses.replace(task, resolve={"cone_facets": 3})
+    with pytest.raises(InvalidInput, match="`discovery_residual` must be None or a number"):
+        dataclasses.replace(task, resolve={"discovery_residual": 0.0})
     with pytest.raises(InvalidInput, match="`resolve` sets the stance re-solve"):
         dataclasses.replace(task, exact_resolve=False)
     with pytest.raises(InvalidInput, match="`resolve` must be a table"):

@@ -204,6 +204,12 @@ class StanceOptions:
             iterations and 155 s against 531 and 264 s, 0.41 against 0.62 GB;
             benchmarks/legged.md). Round-off differs, and with it IPOPT's path.
         threads: threads that evaluate the element derivatives (CasADi's thread map).
+        discovery_residual: None, the stance re-solve follows a converged discovery only;
+            a number r > 0: also a discovery whose homotopy stopped short (nlp_failed or
+            not_converged) when its last solved NLP's complementarity residual is at most r
+            (its stances read from that iterate). The re-solve enforces the stances'
+            complementarity exactly and the reference verifies its plan, so the discovery
+            only proposes the sequence; its status stays in the plan's summary.
         tol, max_iter: IPOPT's.
         capped_restarts: solves of the same NLP again, each from the last one's primal-dual
             iterate, after IPOPT stopped at `max_iter` (each up to `max_iter` more).
@@ -245,6 +251,7 @@ class StanceOptions:
     inverse_dynamics: bool = False
     element_derivatives: bool = True
     threads: int = 2
+    discovery_residual: float | None = None
     tol: float = 1e-8
     max_iter: int = 3000
     capped_restarts: int = 0
@@ -281,6 +288,12 @@ class StanceOptions:
                 raise InvalidInput(f"`{name}` must be an integer >= 0, got {value!r}")
         if self.blas_threads is not None:
             positive_int(self.blas_threads, "blas_threads")
+        if self.discovery_residual is not None and not (
+                isinstance(self.discovery_residual, int | float)
+                and not isinstance(self.discovery_residual, bool)
+                and 0 < self.discovery_residual < math.inf):
+            raise InvalidInput(f"`discovery_residual` must be None or a number > 0, got "
+                               f"{self.discovery_residual!r}")
         if not 0 < self.cone_margin <= 1:
             raise InvalidInput(f"`cone_margin` must lie in (0, 1], got {self.cone_margin}")
         if (isinstance(self.interior_rows, bool) or not isinstance(self.interior_rows, int)

@@ -443,8 +443,9 @@ class StanceResolve(Stage):
         setup = found.setup
         options = self.options or StanceOptions()
         try:
-            if not result.ocp.success:
-                raise NoStart(f"the discovery's homotopy did not converge ({result.status})")
+            refusal = discovery_refusal(result, options)
+            if refusal:
+                raise NoStart(refusal)
             stances = schedule_of(result, options)
         except (NoStart, InvalidInput) as why:
             if given.verbose:
@@ -452,6 +453,10 @@ class StanceResolve(Stage):
             return dataclasses.replace(
                 found, status=found.status if not found.success else "chain_failed",
                 success=False, summary=f"{found.summary}\n{self.name} not started: {why}")
+        if given.verbose and not result.ocp.success:
+            print(f"{self.name}: the discovery stopped short ({result.status}); its last "
+                  f"solved NLP (complementarity residual {result.ocp.residual:.2g} <= "
+                  f"{options.discovery_residual:g}) proposes the stances", flush=True)
         if given.verbose:
             print(f"{self.name}: {len(stances)} stances, closed contacts "
                   + ", ".join(f"{list(s.closed)} from {s.start:.3f} s" for s in stances),
@@ -461,6 +466,24 @@ class StanceResolve(Stage):
         plan = resolve_stances(kept_path_rows(problem, self.path_rows), stances, options,
                                guess=result, verbose=given.verbose)
         return stance_outcome(plan, setup, options, discovery=result)
+
+
+def discovery_refusal(result: ContactResult, options: StanceOptions) -> str | None:
+    """Why the stance re-solve does not follow `result`'s stances, or None when it does:
+    a converged discovery, or one stopped short whose last solved NLP's complementarity
+    residual is within `options.discovery_residual`."""
+    if result.ocp.success:
+        return None
+    limit = options.discovery_residual
+    if limit is None:
+        return (f"the discovery's homotopy did not converge ({result.status}); "
+                "`discovery_residual` lets the re-solve follow its last solved NLP")
+    residual = result.ocp.residual
+    if not residual <= limit:
+        return (f"the discovery's homotopy did not converge ({result.status}) and its last "
+                f"solved NLP's complementarity residual {residual:.2g} exceeds "
+                f"`discovery_residual` = {limit:g}")
+    return None
 
 
 def with_lift_off_heights(options: StanceOptions, problem: ContactProblem) -> StanceOptions:
