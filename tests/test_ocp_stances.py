@@ -202,6 +202,29 @@ def test_the_schedule_of_samples_keeps_the_order_of_touchdowns_and_lift_offs():
         ((0, 1), 0.0), ((1,), 0.05)]
 
 
+def test_a_flight_no_control_jump_can_hold_is_closed_over():
+    """A lift-off goes to a control jump, so a flight with no jump between the contact's
+    closing before it and its touchdown cannot be modelled: the contact stays closed
+    across it (it raised "change twice within one control interval" before). A flight
+    that spans a jump is kept."""
+    t = np.linspace(0.0, 1.0, 1001)
+    gaps = np.zeros((1001, 2))
+    gaps[(t > 0.06) & (t < 0.3), 1] = 0.05  # foot 1 swings, lands at 0.3 s
+    gaps[(t > 0.307) & (t < 0.313), 1] = 0.01  # and chatters up again inside (0.3, 0.35)
+    stances = stance_schedule(t, gaps, 1.0, 20)
+    assert [s.closed for s in stances] == [(0, 1), (0,), (0, 1)]
+    assert stances[2].start == pytest.approx(0.3)
+    # from the start: a hop of foot 0 that lands before the first jump (0.05 s)
+    gaps[:] = 0.0
+    gaps[(t > 0.01) & (t < 0.04), 0] = 0.02
+    assert [s.closed for s in stance_schedule(t, gaps, 1.0, 20)] == [(0, 1)]
+    # the same hop landing after the first jump is a flight from it
+    gaps[(t > 0.01) & (t < 0.07), 0] = 0.02
+    stances = stance_schedule(t, gaps, 1.0, 20)
+    assert [(s.closed, round(s.start, 3)) for s in stances] == [
+        ((0, 1), 0.0), ((1,), 0.05), ((0, 1), 0.07)]
+
+
 def test_bad_schedules_are_refused():
     p = problem([0.0, 0.0, 1.0, 0.0], [0.0] * 4, horizon=0.4, n_intervals=4,
                 u_lower=[0.0] * 4, u_upper=[0.0] * 4, running=lambda tf: ca.DM(0.0))

@@ -349,14 +349,18 @@ def stance_schedule(t: np.ndarray, gaps: np.ndarray, horizon: float, n_intervals
     """The stances of a plan's samples: a contact is closed while its gap stays below
     `flight_gap`; it opens at the control jump k T / N nearest to its last sample before
     the gap rises above it (a lift-off of `resolve_stances` is at a control jump), and
-    closes again at its first sample below `contact_gap` (a touchdown).
+    closes again at its first sample below `contact_gap` (a touchdown). A flight with no
+    control jump between the contact's closing before it (its touchdown, or the start)
+    and its touchdown cannot be modelled (its lift-off has no jump to go to): the contact
+    stays closed across it (a relaxed plan's chatter; biped-walk's discovery from a
+    perturbed start lifted a foot and put it down again within one interval).
 
     Args:
         t: sample times [s], (n,); gaps: the contacts' gaps [m] there, (n, n_contacts).
 
     Raises:
-        InvalidInput: a touchdown and a lift-off that fall together, or a contact that
-            lifts off and touches down again within one control interval.
+        InvalidInput: a touchdown and a lift-off that fall together, or a contact whose
+            changes the control jumps cannot keep apart from the other contacts'.
     """
     options = options or StanceOptions()
     t = np.asarray(t, dtype=float)
@@ -367,13 +371,24 @@ def stance_schedule(t: np.ndarray, gaps: np.ndarray, horizon: float, n_intervals
         down = bool(gaps[0, i] <= options.contact_gap)
         if down:
             closed0.append(i)
+        closing = 0.0 if down else None  # when the contact last closed
+        lift_off = None  # the sample before its pending lift-off
         for k in range(1, len(t)):
             if down and gaps[k, i] > options.flight_gap:
-                lift_offs.append((float(t[k - 1]), i))
-                down = False
+                lift_off, down = float(t[k - 1]), False
             elif not down and gaps[k, i] < options.contact_gap and t[k] < horizon - 1e-9:
-                touchdowns.append((float(t[k]), i))
                 down = True
+                if lift_off is not None and not _jump_between(closing, float(t[k]), step,
+                                                              n_intervals):
+                    lift_off = None  # an unmodelled flight: closed across it
+                    continue
+                if lift_off is not None:
+                    lift_offs.append((lift_off, i))
+                    lift_off = None
+                touchdowns.append((float(t[k]), i))
+                closing = float(t[k])
+        if lift_off is not None:
+            lift_offs.append((lift_off, i))
     changes: dict[float, tuple[set[int], set[int]]] = {}  # time -> (closes, opens)
     for at, i in touchdowns:
         changes.setdefault(at, (set(), set()))[0].add(i)
@@ -411,6 +426,12 @@ def stance_schedule(t: np.ndarray, gaps: np.ndarray, horizon: float, n_intervals
         stances[-1] = Stance(stances[-1].closed, stances[-1].start, at)
         stances.append(Stance(closed, at, horizon))
     return tuple(stances)
+
+
+def _jump_between(begin: float, end: float, step: float, n_intervals: int) -> bool:
+    """Whether a control jump j step (0 < j < N) lies strictly between begin and end."""
+    first = max(math.floor(begin / step + 1e-9) + 1, 1)
+    return first <= n_intervals - 1 and first * step < end - 1e-12
 
 
 def swings(stances: Sequence[Stance], contact: int, horizon: float
