@@ -205,8 +205,8 @@ def test_the_schedule_of_samples_keeps_the_order_of_touchdowns_and_lift_offs():
 def test_a_flight_no_control_jump_can_hold_is_closed_over():
     """A lift-off goes to a control jump, so a flight with no jump between the contact's
     closing before it and its touchdown cannot be modelled: the contact stays closed
-    across it (it raised "change twice within one control interval" before). A flight
-    that spans a jump is kept."""
+    across it (the rule before moved the chatter's lift-off to the jump at the touchdown
+    and gave an extra flight and stance). A flight that spans a jump is kept."""
     t = np.linspace(0.0, 1.0, 1001)
     gaps = np.zeros((1001, 2))
     gaps[(t > 0.06) & (t < 0.3), 1] = 0.05  # foot 1 swings, lands at 0.3 s

@@ -352,8 +352,8 @@ def stance_schedule(t: np.ndarray, gaps: np.ndarray, horizon: float, n_intervals
     closes again at its first sample below `contact_gap` (a touchdown). A flight with no
     control jump between the contact's closing before it (its touchdown, or the start)
     and its touchdown cannot be modelled (its lift-off has no jump to go to): the contact
-    stays closed across it (a relaxed plan's chatter; biped-walk's discovery from a
-    perturbed start lifted a foot and put it down again within one interval).
+    stays closed across it (a relaxed plan's chatter; the rule before gave it a spurious
+    flight and stance).
 
     Args:
         t: sample times [s], (n,); gaps: the contacts' gaps [m] there, (n, n_contacts).
