@@ -377,14 +377,11 @@ def stance_schedule(t: np.ndarray, gaps: np.ndarray, horizon: float, n_intervals
             if down and gaps[k, i] > options.flight_gap:
                 lift_off, down = float(t[k - 1]), False
             elif not down and gaps[k, i] < options.contact_gap and t[k] < horizon - 1e-9:
-                down = True
-                if lift_off is not None and not _jump_between(closing, float(t[k]), step,
-                                                              n_intervals):
-                    lift_off = None  # an unmodelled flight: closed across it
-                    continue
-                if lift_off is not None:
-                    lift_offs.append((lift_off, i))
-                    lift_off = None
+                down, lifted, lift_off = True, lift_off, None
+                if lifted is not None:
+                    if not _jump_between(closing, float(t[k]), step, n_intervals):
+                        continue  # an unmodelled flight: closed across it
+                    lift_offs.append((lifted, i))
                 touchdowns.append((float(t[k]), i))
                 closing = float(t[k])
         if lift_off is not None:

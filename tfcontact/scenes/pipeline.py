@@ -472,18 +472,14 @@ def discovery_refusal(result: ContactResult, options: StanceOptions) -> str | No
     """Why the stance re-solve does not follow `result`'s stances, or None when it does:
     a converged discovery, or one stopped short whose last solved NLP's complementarity
     residual is within `options.discovery_residual`."""
-    if result.ocp.success:
+    limit, residual = options.discovery_residual, result.ocp.residual
+    if result.ocp.success or (limit is not None and residual <= limit):
         return None
-    limit = options.discovery_residual
+    stopped = f"the discovery's homotopy did not converge ({result.status})"
     if limit is None:
-        return (f"the discovery's homotopy did not converge ({result.status}); "
-                "`discovery_residual` lets the re-solve follow its last solved NLP")
-    residual = result.ocp.residual
-    if not residual <= limit:
-        return (f"the discovery's homotopy did not converge ({result.status}) and its last "
-                f"solved NLP's complementarity residual {residual:.2g} exceeds "
-                f"`discovery_residual` = {limit:g}")
-    return None
+        return f"{stopped}; `discovery_residual` lets the re-solve follow its last solved NLP"
+    return (f"{stopped} and its last solved NLP's complementarity residual {residual:.2g} "
+            f"exceeds `discovery_residual` = {limit:g}")
 
 
 def with_lift_off_heights(options: StanceOptions, problem: ContactProblem) -> StanceOptions:
