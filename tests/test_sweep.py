@@ -608,6 +608,38 @@ def test_a_given_contact_sequence_is_swept_from_perturbed_starts(tmp_path, monke
         solve_case(sweep_target(str(path)), "task", SweepCase((), 0, 3), threads=1)
 
 
+def test_a_sweep_keeps_each_cases_plan_as_a_trajectory_file(tmp_path):
+    """A case with a robot to draw: its plan is written as plans/<case>.npz (+ sidecar),
+    the trajectory of its perturbed start that `tfcontact replay` and `check` read, and
+    the case record stays JSON without it; a target without a robot (the particle)
+    writes no plan file."""
+    from strider import STRIDER_STEP, write_strider
+
+    from tfcontact.plan_format import check_plan, load_trajectory
+
+    write_strider(tmp_path)
+    path = tmp_path / "step.toml"
+    path.write_text(STRIDER_STEP + "\n[start_ranges]\nx = [-0.05, 0.05]\n")
+    out = tmp_path / "sweep"
+    result = run_sweep(SweepSpec(str(path), starts=1), out, n_workers=1, progress=False)
+    (case,) = result.cases
+    assert case.success, case.failure
+    assert case.trajectory is None  # written, not kept in memory
+    record = json.loads((out / "cases" / "start=000.json").read_text())
+    assert "trajectory" not in record
+    plan = load_trajectory(out / "plans" / "start=000.npz")
+    assert (out / "plans" / "start=000.json").exists()
+    np.testing.assert_allclose(plan.q[0], record["q0"], atol=1e-12)  # the moved start
+    assert max(abs(v) for v in record["offsets"].values()) > 1e-3
+    assert plan.solver["objective"] == pytest.approx(record["objective"], rel=1e-12)
+    assert check_plan(plan).passed
+    particle = tmp_path / "particle"
+    run_sweep(SweepSpec("particle", starts=1, task="reduced"), particle, n_workers=1,
+              progress=False)
+    assert (particle / "cases" / "start=000.json").exists()
+    assert not (particle / "plans").exists()
+
+
 def test_a_task_files_case_is_the_task_stated_from_its_perturbed_start(tmp_path):
     """A task file's case plans from its start as a user standing there would state it:
     the tracked splines begin at the perturbed start (the tracking cost vanishes there at

@@ -78,6 +78,10 @@ class CaseResult:
         verification: the verification's summary line ("" for an error).
         extra: the draws the feasible start took, each attempt (`Attempt` as a dict), the
             solver settings and the task's goals as measured (`TaskReport.to_dict`).
+        trajectory: the case's plan as `tfcontact plan` would write it (a
+            `tfcontact.plan_format.Trajectory`: the last stage's plan, failed or not), or
+            None (a target without a robot to draw, an error). Not part of the JSON
+            record: the sweep writes it beside it (`run_sweep`, `PLANS_FOLDER`).
     """
 
     case_id: str
@@ -104,6 +108,7 @@ class CaseResult:
     failure_kind: str | None
     verification: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    trajectory: Any = field(default=None, compare=False, repr=False)
 
     @property
     def group(self) -> str:
@@ -202,7 +207,8 @@ class CaseResult:
             verification=next((line for line in reversed(lines) if any(
                 verdict in line for verdict in ("verification PASSED",
                                                 "verification FAILED"))), ""),
-            extra={**self.extra, "stages": stages, "task": outcome.task})
+            extra={**self.extra, "stages": stages, "task": outcome.task},
+            trajectory=trajectory)
 
     @classmethod
     def from_error(cls, case: SweepCase, plan: str, task: str, error: BaseException,
@@ -218,7 +224,8 @@ class CaseResult:
             f"{type(error).__name__}")
 
     def to_dict(self) -> dict:
-        out = asdict(self)
+        out = asdict(dataclasses.replace(self, trajectory=None))
+        del out["trajectory"]  # a file of its own (`run_sweep`), not JSON
         out["params"] = dict(self.params)
         return {"format": CASE_FORMAT, **out}
 
@@ -228,7 +235,7 @@ class CaseResult:
             raise CaseFileError(f"case format {data.get('format')!r}, expected {CASE_FORMAT}")
         names = {f.name for f in fields(cls)}
         values = {k: v for k, v in data.items() if k in names}
-        missing = names - set(values) - {"verification", "extra"}
+        missing = names - set(values) - {"verification", "extra", "trajectory"}
         if missing:
             raise CaseFileError(f"case record lacks {sorted(missing)}")
         values["params"] = tuple(values["params"].items())

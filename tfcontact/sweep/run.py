@@ -27,6 +27,10 @@ from tfcontact.sweep.targets import SweepTarget
 
 SWEEP_FILE = "sweep.json"
 CASES_FOLDER = "cases"
+PLANS_FOLDER = "plans"
+"""Each case's plan as a trajectory file, `plans/<case_id>.npz` + `.json` (what
+`tfcontact plan` writes as trajectory.npz: `tfcontact replay` and `check` read it), so a
+failed case can be examined without solving it again."""
 # What a resumed sweep must share with the one that wrote the folder: its cases' starts
 # and solver setup. The grid and the number of starts may grow.
 _SAME = ("plan", "task", "seed", "threads_per_case", "perturbation", "target")
@@ -59,13 +63,18 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
                                       tuple(problem.system.cls.q_names), outcome,
                                       stage_times, time.perf_counter() - started,
                                       cpu_time=time.process_time() - cpu)
+    from tfcontact.scenes.pipeline import discovery_outcome
+
     stages = tuple(s.with_threads(threads) for s in target.later_stages(task))
     if not stages:
         result = solve_contact(problem, options, verbose=False)
-        return CaseResult.from_contact(case, target.name, task, start, result,
-                                       time.perf_counter() - started,
-                                       cpu_time=time.process_time() - cpu)
-    from tfcontact.scenes.pipeline import discovery_outcome
+        record = CaseResult.from_contact(case, target.name, task, start, result,
+                                         time.perf_counter() - started,
+                                         cpu_time=time.process_time() - cpu)
+        if setup.robot is None:  # a point mass of a reference problem: nothing to draw
+            return record
+        solved = discovery_outcome(result, dataclasses.replace(setup, problem=problem))
+        return dataclasses.replace(record, trajectory=solved.trajectory)
     from tfcontact.scenes.plans import run_whole
 
     runs = target.whole_attempts(task)
@@ -168,7 +177,9 @@ def run_sweep(spec: SweepSpec, out_dir: Path | str, *, scheduler: str | None = N
     """Run every case of `spec` as a Dask task and write the sweep folder.
 
     Each case's `CaseResult` is saved as `out_dir/cases/<case_id>.json` as soon as it
-    finishes, so a stopped sweep loses only the cases running; a rerun on the same folder
+    finishes, its plan (when the target has a robot to draw) as the trajectory file
+    `out_dir/plans/<case_id>.npz` just before, so a stopped sweep loses only the cases
+    running; a rerun on the same folder
     solves only the cases without a file (and those whose solve raised, status "error").
     At the end `table.md` (`SweepResult.table`) and `chart.png` are written from all the
     spec's case files.
@@ -382,6 +393,15 @@ def _solve(client: Any, pending: list[SweepCase], spec: SweepSpec, target: Sweep
             else:  # the case raised on its worker (or the worker died): record why
                 record = CaseResult.from_error(case, spec.plan, spec.task, error)
             future.release()
+            if record.trajectory is not None:
+                # before the record, whose file marks the case done: a sweep stopped
+                # between the two solves the case again and writes both
+                from tfcontact.plan_format import save_trajectory
+
+                plans_dir = cases_dir.parent / PLANS_FOLDER
+                plans_dir.mkdir(exist_ok=True)
+                save_trajectory(plans_dir / f"{record.case_id}.npz", record.trajectory)
+                record = dataclasses.replace(record, trajectory=None)
             record.save(cases_dir)
             solved.append(record)
             reporter.finished(record, done, len(pending), time.perf_counter() - began)
