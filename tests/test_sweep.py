@@ -640,6 +640,31 @@ def test_a_sweep_keeps_each_cases_plan_as_a_trajectory_file(tmp_path):
     assert not (particle / "plans").exists()
 
 
+def test_a_discovery_only_case_keeps_its_failed_plan():
+    """A target whose plan is its discovery alone (the hopper's), cut to one NLP of 15
+    IPOPT iterations so that it fails: the record carries the failed plan's trajectory,
+    from the case's perturbed start, with the record's status."""
+    from tfcontact.sweep.run import solve_case
+    from tfcontact.sweep.targets import HopperTarget
+
+    @dataclasses.dataclass(frozen=True)
+    class CutHopper(HopperTarget):
+        def setup(self, task, params):
+            setup = super().setup(task, params)
+            cut = dataclasses.replace(
+                setup.options, attempts=1,
+                homotopy=dataclasses.replace(setup.options.homotopy, max_nlps=1),
+                nlp=dataclasses.replace(setup.options.nlp, max_iter=15))
+            return dataclasses.replace(setup, options=cut)
+
+    record = solve_case(CutHopper(), "short", SweepCase((), 0, 1), threads=1)
+    assert not record.success
+    plan = record.trajectory
+    np.testing.assert_allclose(plan.q[0], record.q0, atol=1e-12)
+    assert max(abs(v) for v in record.offsets.values()) > 1e-3
+    assert plan.status == record.status
+
+
 def test_a_task_files_case_is_the_task_stated_from_its_perturbed_start(tmp_path):
     """A task file's case plans from its start as a user standing there would state it:
     the tracked splines begin at the perturbed start (the tracking cost vanishes there at
