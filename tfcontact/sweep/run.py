@@ -179,8 +179,8 @@ def run_sweep(spec: SweepSpec, out_dir: Path | str, *, scheduler: str | None = N
     Each case's `CaseResult` is saved as `out_dir/cases/<case_id>.json` as soon as it
     finishes, its plan (when the target has a robot to draw) as the trajectory file
     `out_dir/plans/<case_id>.npz` just before, so a stopped sweep loses only the cases
-    running; a rerun on the same folder
-    solves only the cases without a file (and those whose solve raised, status "error").
+    running; a rerun on the same folder solves only the cases without a file (and those
+    whose solve raised, status "error").
     At the end `table.md` (`SweepResult.table`) and `chart.png` are written from all the
     spec's case files.
 
