@@ -40,7 +40,8 @@ Checks (each printed; the exit code is 1 if one fails):
 6. `impacts`: impacts found in the recorded data: frozen pieces (the clock rate
    dt/dtau <= the sidecar's `frozen_rate_tol` while tau advances), nonzero recorded
    impulses outside them, and touchdowns inside a sampling interval (a contact closed,
-   gap <= 1e-4 m, approaching faster than 1e-2 m/s with the next interval running).
+   gap <= 1e-4 m, approaching faster than 1e-2 m/s with the next interval running, that
+   by the next sample has reached the ground or slowed its approach by 1e-2 m/s).
    Every frozen piece or recorded impulse satisfies the momentum balance
    M(q) (v+ - v-) = sum_k J_k(q)^T Lambda_k with the recorded impulses Lambda_k (J_k: the
    linear part of contact k's frame Jacobian in the world-aligned frame) to --tol relative
@@ -225,9 +226,13 @@ def impacts(meta: dict, arrays: dict) -> list[tuple[int, int, str]]:
     for k in np.flatnonzero(np.any(impulse != 0, axis=(1, 2)) & ~explained):
         earlier = t_index[t_index < k]
         found.append((int(earlier[-1]) if earlier.size else 0, int(k), "impulse"))
-    approaching = np.any((gap <= CLOSED_GAP) & (vn < -APPROACH_SPEED), axis=1)[:-1]
+    approaching = ((gap <= CLOSED_GAP) & (vn < -APPROACH_SPEED))[:-1]
+    # it touches down by the next sample if it reaches the ground or its approach is
+    # taken out; one that flies on towards the ground is still in the air
+    reached = (gap[1:] <= 0.0) | (np.diff(vn, axis=0) > APPROACH_SPEED)
+    touching = np.any(approaching & reached, axis=1)
     next_frozen = np.append(frozen[1:], False)  # the frozen piece that follows resolves it
-    for k in np.flatnonzero(approaching & ~frozen & ~next_frozen):
+    for k in np.flatnonzero(touching & ~frozen & ~next_frozen):
         if not any(a <= k < b for a, b, _ in found):
             found.append((int(k), int(k) + 1, "inside interval"))
     return sorted(found)

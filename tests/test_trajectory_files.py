@@ -460,6 +460,16 @@ def test_impacts_from_the_recorded_data():
     assert impacts[0].impulse.tolist() == [[0.0, 0.0, 1.0]]
     assert impacts[1].time == pytest.approx(0.4, abs=1e-4)  # the frozen piece took 0.3 s of tau
     assert len(find_impacts(traj, tolerances=CheckTolerances(approach_speed=0.5))) == 1
+    # a foot flying on towards the ground within closed_gap of it (a trot's swing foot
+    # 0.08 mm up 1 ms before its landing: -0.02 then -0.04 m/s) has not landed yet; one
+    # that reaches the ground still approaching has, and still approaches after it
+    gap[6:, 0], vn[6:, 0] = (8e-5, 5e-5, 2e-5, 0.0), (-0.02, -0.04, -0.06, 0.0)
+    skimming = find_impacts(dataclasses.replace(traj, gap=gap, normal_velocity=vn))
+    assert [(i.kind, i.samples) for i in skimming] == [("frozen piece", (2, 5)),
+                                                       ("inside interval", (8, 9))]
+    gap[7, 0] = -1e-6
+    through = find_impacts(dataclasses.replace(traj, gap=gap, normal_velocity=vn))
+    assert [(i.kind, i.samples) for i in through][1] == ("inside interval", (6, 7))
 
 
 def test_check_tolerances_are_validated():

@@ -671,9 +671,11 @@ class RecordedImpact:
         samples: (pre, post): the samples just before and just after it.
         kind: "frozen piece" (the clock stands still over samples pre..post while tau
             advances), "impulse" (a nonzero recorded impulse at `post` outside any frozen
-            piece) or "inside interval" (a closed contact approaches at `pre` and the
-            interval pre..post runs: the impact lies between two samples, too short for the
-            sampling to show, and no impulse is recorded for it).
+            piece) or "inside interval" (a closed contact approaches at `pre`, the
+            interval pre..post runs, and by `post` the contact has reached the ground
+            (gap <= 0) or its approach slowed by more than the approach speed: the impact
+            lies between two samples, too short for the sampling to show, and no impulse
+            is recorded for it).
         contacts: the contacts closed at `pre`.
         impulse: the recorded impulses [N s] summed over the samples pre+1..post, (nc, 3).
     """
@@ -707,9 +709,15 @@ def find_impacts(traj: Trajectory, *,
         impacts.append((int(earlier[-1]) if earlier.size else 0, int(k), "impulse"))
     closed = traj.gap <= tol.closed_gap
     approaching = closed & (traj.normal_velocity < -tol.approach_speed)
+    # ... touches down before the next sample only if it reaches the ground by then or its
+    # approach is taken out: one that flies on towards the ground is still in the air (a
+    # trot's swing foot 0.08 mm above the ground 1 ms before its landing, measured)
+    reached = (traj.gap[1:] <= 0.0) | (np.diff(traj.normal_velocity, axis=0)
+                                       > tol.approach_speed)
+    touching = approaching[:-1] & reached
     # an approach into a frozen piece that starts at the next sample is that piece's
     next_frozen = np.append(frozen[1:], False)
-    for k in np.flatnonzero(np.any(approaching[:-1], axis=1) & ~frozen & ~next_frozen):
+    for k in np.flatnonzero(np.any(touching, axis=1) & ~frozen & ~next_frozen):
         if not any(pre <= k < post for pre, post, _ in impacts):
             impacts.append((int(k), int(k) + 1, "inside interval"))
     return tuple(
