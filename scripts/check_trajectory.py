@@ -212,6 +212,14 @@ def frozen_pieces(tau: np.ndarray, clock: np.ndarray, rate_tol: float) -> list[t
     return pieces
 
 
+def touching(gap: np.ndarray, vn: np.ndarray) -> np.ndarray:
+    """(samples - 1, contacts): the contact is closed and approaching at sample k and by
+    sample k + 1 has reached the ground or slowed its approach (a touchdown inside the
+    interval); one that flies on towards the ground is still in the air."""
+    approaching = ((gap <= CLOSED_GAP) & (vn < -APPROACH_SPEED))[:-1]
+    return approaching & ((gap[1:] <= 0.0) | (np.diff(vn, axis=0) > APPROACH_SPEED))
+
+
 def impacts(meta: dict, arrays: dict) -> list[tuple[int, int, str]]:
     """(pre, post, kind) of every impact found in the recorded data."""
     tau, clock, t_index = arrays["tau"], arrays["clock"], arrays["t_index"]
@@ -226,13 +234,8 @@ def impacts(meta: dict, arrays: dict) -> list[tuple[int, int, str]]:
     for k in np.flatnonzero(np.any(impulse != 0, axis=(1, 2)) & ~explained):
         earlier = t_index[t_index < k]
         found.append((int(earlier[-1]) if earlier.size else 0, int(k), "impulse"))
-    approaching = ((gap <= CLOSED_GAP) & (vn < -APPROACH_SPEED))[:-1]
-    # it touches down by the next sample if it reaches the ground or its approach is
-    # taken out; one that flies on towards the ground is still in the air
-    reached = (gap[1:] <= 0.0) | (np.diff(vn, axis=0) > APPROACH_SPEED)
-    touching = np.any(approaching & reached, axis=1)
     next_frozen = np.append(frozen[1:], False)  # the frozen piece that follows resolves it
-    for k in np.flatnonzero(touching & ~frozen & ~next_frozen):
+    for k in np.flatnonzero(np.any(touching(gap, vn), axis=1) & ~frozen & ~next_frozen):
         if not any(a <= k < b for a, b, _ in found):
             found.append((int(k), int(k) + 1, "inside interval"))
     return sorted(found)
@@ -285,10 +288,10 @@ def check(meta: dict, arrays: dict, tol: float, penetration: float) -> bool:
         results.append(("fk", True, "skipped: the gaps are not against one flat ground"))
 
     worst, still, found = 0.0, [], impacts(meta, arrays)
+    landing = touching(gap, arrays["normal_velocity"])
     for pre, post, kind in found:
         if kind == "inside interval":
-            closed = gap[pre] <= CLOSED_GAP
-            if np.any(arrays["normal_velocity"][post, closed] < -APPROACH_SPEED):
+            if np.any(arrays["normal_velocity"][post, landing[pre]] < -APPROACH_SPEED):
                 still.append(clock[pre])
             continue
         qk = q[pre]

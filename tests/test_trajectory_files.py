@@ -470,6 +470,15 @@ def test_impacts_from_the_recorded_data():
     gap[7, 0] = -1e-6
     through = find_impacts(dataclasses.replace(traj, gap=gap, normal_velocity=vn))
     assert [(i.kind, i.samples) for i in through][1] == ("inside interval", (6, 7))
+    # the pair's other foot, closed but flying on, is not one of that touchdown's contacts
+    # (whose approach after it `check_plan` judges)
+    pair = find_impacts(dataclasses.replace(
+        traj, gap=np.column_stack([gap, gap[:, 0] + 1e-5]),
+        normal_velocity=np.column_stack([vn, np.full(n, -0.02)]),
+        impulse=np.zeros((n, 2, 3)), force=np.zeros((n, 2, 3)),
+        robot={**traj.robot, "contacts": 2 * traj.robot["contacts"]}))
+    assert [(i.samples, i.contacts) for i in pair if i.kind == "inside interval"][0] == (
+        (6, 7), (0,))
 
 
 def test_check_tolerances_are_validated():

@@ -676,7 +676,8 @@ class RecordedImpact:
             (gap <= 0) or its approach slowed by more than the approach speed: the impact
             lies between two samples, too short for the sampling to show, and no impulse
             is recorded for it).
-        contacts: the contacts closed at `pre`.
+        contacts: the contacts closed at `pre` ("inside interval": those touching down:
+            another foot of the pair may still be flying on towards the ground).
         impulse: the recorded impulses [N s] summed over the samples pre+1..post, (nc, 3).
     """
 
@@ -709,9 +710,10 @@ def find_impacts(traj: Trajectory, *,
         impacts.append((int(earlier[-1]) if earlier.size else 0, int(k), "impulse"))
     closed = traj.gap <= tol.closed_gap
     approaching = closed & (traj.normal_velocity < -tol.approach_speed)
-    # ... touches down before the next sample only if it reaches the ground by then or its
-    # approach is taken out: one that flies on towards the ground is still in the air (a
-    # trot's swing foot 0.08 mm above the ground 1 ms before its landing, measured)
+    # a closed contact approaching at one sample touches down before the next only if it
+    # reaches the ground by then or its approach is taken out: one that flies on towards
+    # the ground is still in the air (a trot's swing foot 0.08 mm above the ground 1 ms
+    # before its landing, measured)
     reached = (traj.gap[1:] <= 0.0) | (np.diff(traj.normal_velocity, axis=0)
                                        > tol.approach_speed)
     touching = approaching[:-1] & reached
@@ -722,7 +724,8 @@ def find_impacts(traj: Trajectory, *,
             impacts.append((int(k), int(k) + 1, "inside interval"))
     return tuple(
         RecordedImpact(time=float(traj.clock[pre]), samples=(pre, post), kind=kind,
-                       contacts=tuple(int(c) for c in np.flatnonzero(closed[pre])),
+                       contacts=tuple(int(c) for c in np.flatnonzero(
+                           touching[pre] if kind == "inside interval" else closed[pre])),
                        impulse=traj.impulse[pre + 1:post + 1].sum(axis=0))
         for pre, post, kind in sorted(impacts))
 
