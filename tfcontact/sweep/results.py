@@ -9,12 +9,15 @@ import os
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from tfcontact.errors import TfcontactError
 from tfcontact.sweep.spec import GridValue, SweepCase, SweepSpec
+
+if TYPE_CHECKING:
+    from tfcontact.plan_format import Trajectory
 
 CASE_FORMAT = 1
 """Version of the case files' layout (`CaseResult.to_dict`)."""
@@ -108,7 +111,7 @@ class CaseResult:
     failure_kind: str | None
     verification: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
-    trajectory: Any = field(default=None, compare=False, repr=False)
+    trajectory: Trajectory | None = field(default=None, compare=False, repr=False)
 
     @property
     def group(self) -> str:
