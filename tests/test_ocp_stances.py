@@ -71,20 +71,26 @@ def two_drops():
     return p, stances, (t, x, np.zeros((5, 4))), (t1, t2)
 
 
-@pytest.mark.parametrize(("integrator", "inverse_dynamics", "element_derivatives"),
-                         [("rk4", False, False), ("rk4", False, True), ("radau", False, False),
-                          ("radau", False, True), ("radau", True, False)])
+@pytest.mark.parametrize(("integrator", "inverse_dynamics", "element_derivatives",
+                          "lifted_forces"),
+                         [("rk4", False, False, False), ("rk4", False, True, False),
+                          ("radau", False, False, False), ("radau", False, True, False),
+                          ("radau", True, False, False), ("radau", False, False, True),
+                          ("radau", False, True, True)])
 def test_two_drops_touch_down_at_the_free_fall_times_and_stop(integrator, inverse_dynamics,
-                                                              element_derivatives):
+                                                              element_derivatives,
+                                                              lifted_forces):
     """Both masses dropped, the first with a horizontal speed: each touchdown at
     sqrt(2 h / g) (RK4 and Radau IIA integrate free fall exactly), the impact leaves it at rest
     (Lambda_t = -m v_x inside the cone), and the multi-contact reference agrees; Radau in
-    both forms of the dynamics (explicit and inverse dynamics), and the explicit one with
-    its elements differentiated once each (`element_derivatives`). The guess is 10 ms off:
+    three forms of the dynamics (explicit, forces lifted, inverse dynamics), the explicit
+    and the lifted one also with their elements differentiated once each
+    (`element_derivatives`). The guess is 10 ms off:
     the re-solve moves the switches to the closed forms."""
     p, stances, guess, (t1, t2) = two_drops()
     options = StanceOptions(tol=1e-10, integrator=integrator, inverse_dynamics=inverse_dynamics,
-                            element_derivatives=element_derivatives, threads=2)
+                            element_derivatives=element_derivatives, threads=2,
+                            lifted_forces=lifted_forces)
     plan = resolve_stances(p, stances, options, guess=guess, verbose=False)
     assert plan.solved, plan.ipopt_status
     assert [s.closed for s in plan.stances] == [(), (0,), (0, 1)]
@@ -128,17 +134,23 @@ def test_a_capped_nlp_solved_again_from_its_iterate_converges():
         StanceOptions(element_derivatives="yes")
     with pytest.raises(InvalidInput, match="threads"):
         StanceOptions(threads=0)
+    with pytest.raises(InvalidInput, match="`lifted_forces` needs integrator='radau'"):
+        StanceOptions(lifted_forces=True, integrator="rk4")
+    with pytest.raises(InvalidInput, match="`lifted_forces` needs"):
+        StanceOptions(lifted_forces=True, inverse_dynamics=True)
 
 
-@pytest.mark.parametrize(("inverse_dynamics", "element_derivatives"),
-                         [(False, False), (True, False), (False, True)])
+@pytest.mark.parametrize(("inverse_dynamics", "element_derivatives", "lifted_forces"),
+                         [(False, False, False), (True, False, False), (False, True, False),
+                          (False, False, True), (False, True, True)])
 def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens(inverse_dynamics,
-                                                             element_derivatives):
+                                                             element_derivatives,
+                                                             lifted_forces):
     """Mass 1 rests and is pushed sideways as hard as it can while it sticks: the push
     reaches c mu m g (the cone's edge) and it does not move. Mass 2 lifts off at the
     control jump 0.2 s: the new control's vertical force is at least its weight. Both
-    forms of the dynamics (the forces as expressions or as variables), the explicit one
-    also with element derivatives."""
+    forms of the dynamics (the forces as expressions, as variables with the acceleration
+    explicit, or both as variables), the first two also with element derivatives."""
     margin = 0.9
     p = problem([0.0, 0.0, 1.0, 0.0], [0.0] * 4, horizon=0.4, n_intervals=4,
                 u_lower=[-20.0, 0.0, 0.0, 0.0], u_upper=[20.0, 0.0, 0.0, 40.0],
@@ -151,7 +163,8 @@ def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens(inverse_dynamics,
     stances = (Stance((0, 1), 0.0, 0.2), Stance((0,), 0.2, 0.4))
     plan = resolve_stances(p, stances, StanceOptions(cone_margin=margin, tol=1e-10,
                                                      inverse_dynamics=inverse_dynamics,
-                                                     element_derivatives=element_derivatives),
+                                                     element_derivatives=element_derivatives,
+                                                     lifted_forces=lifted_forces),
                            guess=(t, x, np.zeros((4, 4))), verbose=False)
     assert plan.solved, plan.ipopt_status
     np.testing.assert_allclose(plan.u[:, 0], margin * MU * MASSES[0] * G, rtol=1e-6)

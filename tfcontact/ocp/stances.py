@@ -193,6 +193,14 @@ class StanceOptions:
             against the explicit form's 0.52 s (whose Hessian alone took 0.32 s), but
             IPOPT needed far more of them: 245 iterations (144 s) explicit against more
             than 2000 for a one-step walk (benchmarks/legged.md).
+        lifted_forces: the closed contacts' forces lambda of every stage state as NLP
+            variables (Radau only), its acceleration a = M^-1 (f + J_S lambda) (one M(q)
+            solve, no Delassus inverse) and the rows J_S^T a + (dJ_S/dt)^T v =
+            -(stabilisation); the cone rows are then rows in lambda. Between the explicit
+            form (lambda an expression of (x, u)) and `inverse_dynamics` (a variable too):
+            on solo12's four-foot stance an element's Hessian took 1.6M instructions
+            against the explicit form's 4.8M, and a node's cone rows none against 1.2M
+            (benchmarks/legged.md).
         element_derivatives: differentiate each collocation element's (each shooting
             step's) equations, the contacts' rows at a node and the path rows (unless they
             depend on the time) once per stance and scatter them
@@ -249,6 +257,7 @@ class StanceOptions:
     swing_fallback: bool = True
     end_height_rows: bool = True
     inverse_dynamics: bool = False
+    lifted_forces: bool = False
     element_derivatives: bool = True
     threads: int = 2
     discovery_residual: float | None = None
@@ -276,6 +285,12 @@ class StanceOptions:
         if self.inverse_dynamics and self.integrator == "rk4":
             raise InvalidInput("`inverse_dynamics` needs integrator='radau' (RK4 integrates "
                                "the explicit form a(x, u))")
+        if not isinstance(self.lifted_forces, bool):
+            raise InvalidInput(f"`lifted_forces` must be True or False, got "
+                               f"{self.lifted_forces!r}")
+        if self.lifted_forces and (self.integrator == "rk4" or self.inverse_dynamics):
+            raise InvalidInput("`lifted_forces` needs integrator='radau' and not "
+                               "inverse_dynamics (which lifts the forces already)")
         if not isinstance(self.element_derivatives, bool):
             raise InvalidInput(f"`element_derivatives` must be True or False, got "
                                f"{self.element_derivatives!r}")
@@ -617,6 +632,40 @@ class StanceDynamics:
                                                  f"shooting_{len(self._cache)}")
         return self._cache[key]
 
+    def lifted(self, closed: tuple[int, ...]) -> ca.Function:
+        """(x, u, lambda) -> ((v, a), J_S^T a + (dJ_S/dt)^T v + stab) with
+        a = M^-1 (f + J_S lambda): the forces-lifted form of stance `closed` (one M(q)
+        solve, no Delassus inverse); its second output is zero where lambda is the stance's
+        force."""
+        key = (closed, "lifted")
+        if key not in self._cache:
+            jac, _, drift, stab, _, _ = self._terms(closed)
+            lam = ca.SX.sym("lambda", jac.shape[1])
+            acc = self.cls.solve_mass(self.cls.forces + ca.mtimes(jac, lam))
+            self._cache[key] = ca.Function(
+                f"lifted_{len(self._cache)}", [self._x, self._u, lam],
+                [ca.vertcat(self.cls.v, acc), ca.mtimes(jac.T, acc) + drift + stab])
+        return self._cache[key]
+
+    def lifted_collocation(self, closed: tuple[int, ...], tableau) -> ca.Function:
+        """(x, z_1..z_s, lambda_1..lambda_s, u, h) -> one Radau element's collocation
+        equations under `lifted(closed)` and the stance's rows at each stage, zero at a
+        solution; built once."""
+        key = (closed, "lifted_collocation", tableau.stages)
+        if key not in self._cache:
+            n_x, n_lam = self._x.shape[0], sum(self.sizes(closed))
+            x = ca.SX.sym("x", n_x)
+            stages = [ca.SX.sym(f"z{j}", n_x) for j in range(tableau.stages)]
+            forces = [ca.SX.sym(f"lambda{j}", n_lam) for j in range(tableau.stages)]
+            u, h = ca.SX.sym("u", self._u.shape[0]), ca.SX.sym("h")
+            terms = [self.lifted(closed)(z, u, lam)
+                     for z, lam in zip(stages, forces, strict=True)]
+            rows = collocation_rows(tableau, x, stages, [slope for slope, _ in terms], h)
+            self._cache[key] = ca.Function(
+                f"lifted_collocation_{len(self._cache)}", [x, *stages, *forces, u, h],
+                [ca.vertcat(*rows, *[row for _, row in terms])])
+        return self._cache[key]
+
     def collocation(self, closed: tuple[int, ...], tableau) -> ca.Function:
         """`collocation_function` of `rhs(closed)`, built once."""
         key = (closed, "collocation", tableau.stages)
@@ -871,6 +920,15 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
             opti.set_initial(lam, dyn.force(closed)(x_init, u_init))
         return a, lam
 
+    def lifted_force(x, u, closed):
+        """lambda of stance `closed` at the node x under u as NLP variables
+        (`StanceOptions.lifted_forces`), initialised by the explicit form at the node's
+        initial guess."""
+        lam = opti.variable(sum(dyn.sizes(closed)))
+        x_init, u_init = (opti.value(e, opti.initial()) for e in (x, u))
+        opti.set_initial(lam, dyn.force(closed)(x_init, u_init))
+        return lam
+
     # With element derivatives, a node's path rows (if free of the time) and its contacts'
     # rows are repeated rows: one function each (per stance and switching contacts).
     path_rows = None if repeated is None else functions.path_rows()
@@ -1021,6 +1079,14 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
                                                  for z, (a, _) in zip(stages, terms,
                                                                       strict=True)], h)
                         forces = [lam for _, lam in terms]
+                    elif options.lifted_forces and closed:
+                        forces = [lifted_force(z, u_k, closed) for z in stages]
+                        function = dyn.lifted_collocation(closed, tableau)
+                        if repeated is not None:
+                            repeated.zero(function, x, *stages, *forces, u_k, h)
+                        else:
+                            opti.subject_to(function(x, *stages, *forces, u_k, h) == 0)
+                        residuals = [None] * len(stages)
                     elif repeated is not None:
                         repeated.zero(dyn.collocation(closed, tableau), x, *stages, u_k, h)
                         residuals = [None] * len(stages)

@@ -52,7 +52,7 @@ def _names(mapping: Mapping[str, Any], where: str) -> dict[str, Any]:
 
 RESOLVE_SETTINGS = frozenset({"cone_facets", "min_normal_force", "touchdown_speed",
                               "interior_rows", "contact_tolerance", "cone_margin",
-                              "swing_middle", "discovery_residual"})
+                              "swing_middle", "discovery_residual", "lifted_forces"})
 """The `tfcontact.ocp.StanceOptions` fields a task's `[resolve]` table may set."""
 
 
@@ -492,7 +492,8 @@ class Task:
         resolve: settings of the stance re-solve (several contacts), a `[resolve]` table
             of `RESOLVE_SETTINGS`, each the `tfcontact.ocp.StanceOptions` field of its
             name: `cone_facets`, `min_normal_force`, `touchdown_speed`, `interior_rows`,
-            `contact_tolerance`, `cone_margin`, `swing_middle`, `discovery_residual`.
+            `contact_tolerance`, `cone_margin`, `swing_middle`, `discovery_residual`,
+            `lifted_forces`.
             What a plan of four 3-D feet needed is in benchmarks/legged.md.
         attempts: solves of the plan at most (default: the preset's): a plan that fails
             is solved again from its guess perturbed (`ContactSolverOptions.attempts`).
