@@ -237,13 +237,18 @@ class Start:
 
 
 LIFT_OFFS_AT_CONTROL_JUMPS = PolishOptions(lift_offs_at_control_jumps=True,
-                                           element_derivatives=True, threads=2)
+                                           element_derivatives=True, threads=2,
+                                           max_iter=1000)
 """The exact re-solve's default: `PolishOptions` with each lift-off straight from stick
 moved to the nearest control jump, where the re-solve can model it, and each RK4 step
 differentiated once (`element_derivatives`, on two threads; the monoped's chain and the
 stance re-solve do the same): `tfcontact plan hopper-exact`'s re-solve took 94 s instead
 of 295 s (building its NLP 8 s instead of 57 s), to the same objective and the same
-verified plan (benchmarks/hopper_bench.md)."""
+verified plan (benchmarks/hopper_bench.md). IPOPT stops at 1000 iterations, and the
+chain's last level is then solved once more from that iterate (`resolve_chain`): on the
+Zen 3/4 EPYC hopper-exact's re-solve crept (objective 24.4 to 22.7 in 3000 iterations,
+576 s), and its fresh restart converged in 348 more; capped at 1000, the restart
+converged in 428 to the same plan, 298 s in all against 663 (benchmarks/hopper_bench.md)."""
 
 
 class NoStart(Exception):  # noqa: N818 (a stage's verdict, not a program error)
