@@ -161,12 +161,19 @@ def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens(inverse_dynamics,
     x[:, 2] = 1.0
     x[:, 3] = np.where(t > 0.2, 0.5 * (t - 0.2), 0.0)
     stances = (Stance((0, 1), 0.0, 0.2), Stance((0,), 0.2, 0.4))
-    plan = resolve_stances(p, stances, StanceOptions(cone_margin=margin, tol=1e-10,
-                                                     inverse_dynamics=inverse_dynamics,
-                                                     element_derivatives=element_derivatives,
-                                                     lifted_forces=lifted_forces),
-                           guess=(t, x, np.zeros((4, 4))), verbose=False)
+    options = StanceOptions(cone_margin=margin, tol=1e-10, inverse_dynamics=inverse_dynamics,
+                            element_derivatives=element_derivatives,
+                            lifted_forces=lifted_forces)
+    guess = (t, x, np.zeros((4, 4)))
+    plan = resolve_stances(p, stances, options, guess=guess, verbose=False)
     assert plan.solved, plan.ipopt_status
+    if lifted_forces:  # the forces are variables: (lambda_n, lambda_t) per closed contact
+        # at each of 3 elements x 3 Radau stages per interval, 2 intervals of each stance
+        explicit = resolve_stances(p, stances, dataclasses.replace(options,
+                                                                   lifted_forces=False),
+                                   guess=guess, verbose=False)
+        assert plan.timing.n_variables - explicit.timing.n_variables == 18 * 4 + 18 * 2
+        assert plan.cost == pytest.approx(explicit.cost, rel=1e-6)  # the same optimum
     np.testing.assert_allclose(plan.u[:, 0], margin * MU * MASSES[0] * G, rtol=1e-6)
     np.testing.assert_allclose(plan.x[:, [0, 1]], [[0.0, 0.0]] * len(plan.x), atol=1e-7)
     assert plan.u[2, 3] >= MASSES[1] * G - 1e-6  # it opens: u_z >= m g at the jump
@@ -620,11 +627,13 @@ def test_a_standing_foots_velocity_error_does_not_fail_the_restart():
     assert np.max(np.abs(restart.final_state() - plan_end)) < 1e-5
 
 
-def test_the_inverse_dynamics_rows_vanish_at_the_explicit_acceleration_and_forces():
+def test_the_lifted_rows_vanish_at_the_explicit_acceleration_and_forces():
     """`StanceDynamics.inverse` (M a = f + J lambda, J^T a + drift = -stab) is zero at the
     explicit form's a(x, u) and lambda(x, u) for every stance, on a system with a coupled,
     configuration-dependent mass matrix and curved gaps (drift terms), and not zero for
-    another acceleration."""
+    another acceleration. `StanceDynamics.lifted` (a = M^-1 (f + J lambda)) gives the
+    explicit form's slope and zero rows at its forces (the explicit form solves with the
+    Delassus matrix instead), and nonzero rows at other forces."""
     from tfcontact.ocp.stances import StanceDynamics
 
     rng = np.random.default_rng(3)
@@ -650,6 +659,13 @@ def test_the_inverse_dynamics_rows_vanish_at_the_explicit_acceleration_and_force
             np.testing.assert_allclose(rows, 0.0, atol=1e-10)
             other = np.asarray(dyn.inverse(closed)(x, control, a + 0.01, lam)).ravel()
             assert np.max(np.abs(other)) > 1e-3
+            if closed:
+                slope, held = (np.asarray(out).ravel()
+                               for out in dyn.lifted(closed)(x, control, lam))
+                np.testing.assert_allclose(slope, np.concatenate([x[4:], a]), atol=1e-10)
+                np.testing.assert_allclose(held, 0.0, atol=1e-10)
+                held = np.asarray(dyn.lifted(closed)(x, control, lam + 0.01)[1]).ravel()
+                assert np.max(np.abs(held)) > 1e-3
 
 
 @pytest.mark.slow

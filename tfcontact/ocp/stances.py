@@ -516,6 +516,12 @@ class StanceDynamics:
         delassus = ca.mtimes(jac.T, minv_j)
         return jac, vel, drift, ca.vertcat(*stab), minv_j, delassus
 
+    def _held(self, closed: tuple[int, ...], acc: ca.SX) -> ca.SX:
+        """J_S^T a + (dJ_S/dt)^T v + stab: zero where the acceleration a keeps the closed
+        contacts closed and sticking (the rows of the forms with a or lambda lifted)."""
+        jac, _, drift, stab, _, _ = self._terms(closed)
+        return ca.mtimes(jac.T, acc) + drift + stab
+
     def _stance(self, closed: tuple[int, ...]) -> dict:
         if closed in self._cache:
             return self._cache[closed]
@@ -566,9 +572,8 @@ class StanceDynamics:
             lam = ca.SX.sym("lambda", sum(self.sizes(closed)))
             rows = ca.mtimes(cls.mass_matrix, a) - cls.forces
             if closed:
-                jac, _, drift, stab, _, _ = self._terms(closed)
-                rows = ca.vertcat(rows - ca.mtimes(jac, lam),
-                                  ca.mtimes(jac.T, a) + drift + stab)
+                jac = self._terms(closed)[0]
+                rows = ca.vertcat(rows - ca.mtimes(jac, lam), self._held(closed, a))
             self._cache[key] = ca.Function("inverse", [self._x, self._u, a, lam], [rows])
         return self._cache[key]
 
@@ -639,12 +644,12 @@ class StanceDynamics:
         force."""
         key = (closed, "lifted")
         if key not in self._cache:
-            jac, _, drift, stab, _, _ = self._terms(closed)
+            jac = self._terms(closed)[0]
             lam = ca.SX.sym("lambda", jac.shape[1])
             acc = self.cls.solve_mass(self.cls.forces + ca.mtimes(jac, lam))
             self._cache[key] = ca.Function(
                 f"lifted_{len(self._cache)}", [self._x, self._u, lam],
-                [ca.vertcat(self.cls.v, acc), ca.mtimes(jac.T, acc) + drift + stab])
+                [ca.vertcat(self.cls.v, acc), self._held(closed, acc)])
         return self._cache[key]
 
     def lifted_collocation(self, closed: tuple[int, ...], tableau) -> ca.Function:
@@ -907,27 +912,26 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
         switch_at.setdefault(k, []).append((fraction, j))
         switch_times[j] = grid[k] + fraction * dt
 
+    def lifted_force(x, u, closed):
+        """lambda of stance `closed` at the node x under u as NLP variables (none for a
+        flight), initialised by the explicit form at the node's initial guess."""
+        if not closed:
+            return ca.MX(0, 1)
+        lam = opti.variable(sum(dyn.sizes(closed)))
+        x_init, u_init = (opti.value(e, opti.initial()) for e in (x, u))
+        opti.set_initial(lam, dyn.force(closed)(x_init, u_init))
+        return lam
+
     def lifted_terms(x, u, closed):
         """(a, lambda) of stance `closed` at the node x under u in the inverse-dynamics
         form: NLP variables bound by its rows, initialised by the explicit form at the
         node's initial guess."""
         a = opti.variable(n_q)
-        lam = opti.variable(sum(dyn.sizes(closed))) if closed else ca.MX(0, 1)
+        lam = lifted_force(x, u, closed)
         opti.subject_to(dyn.inverse(closed)(x, u, a, lam) == 0)
         x_init, u_init = (opti.value(e, opti.initial()) for e in (x, u))
         opti.set_initial(a, dyn.acceleration(closed)(x_init, u_init))
-        if closed:
-            opti.set_initial(lam, dyn.force(closed)(x_init, u_init))
         return a, lam
-
-    def lifted_force(x, u, closed):
-        """lambda of stance `closed` at the node x under u as NLP variables
-        (`StanceOptions.lifted_forces`), initialised by the explicit form at the node's
-        initial guess."""
-        lam = opti.variable(sum(dyn.sizes(closed)))
-        x_init, u_init = (opti.value(e, opti.initial()) for e in (x, u))
-        opti.set_initial(lam, dyn.force(closed)(x_init, u_init))
-        return lam
 
     # With element derivatives, a node's path rows (if free of the time) and its contacts'
     # rows are repeated rows: one function each (per stance and switching contacts).

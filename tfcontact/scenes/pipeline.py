@@ -246,7 +246,7 @@ stance re-solve do the same): `tfcontact plan hopper-exact`'s re-solve took 94 s
 of 295 s (building its NLP 8 s instead of 57 s), to the same objective and the same
 verified plan (benchmarks/hopper_bench.md). IPOPT stops at 1000 iterations, and the
 chain's last level is then solved once more from that iterate (`resolve_chain`): on the
-Zen 3/4 EPYC hopper-exact's re-solve crept (objective 24.4 to 22.7 in 3000 iterations,
+AVX-512 EPYC hopper-exact's re-solve crept (objective 24.4 to 22.7 in 3000 iterations,
 576 s), and its fresh restart converged in 348 more; capped at 1000, the restart
 converged in 428 to the same plan, 298 s in all against 663 (benchmarks/hopper_bench.md)."""
 
