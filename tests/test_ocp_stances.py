@@ -138,19 +138,25 @@ def test_a_capped_nlp_solved_again_from_its_iterate_converges():
         StanceOptions(lifted_forces=True, integrator="rk4")
     with pytest.raises(InvalidInput, match="`lifted_forces` needs"):
         StanceOptions(lifted_forces=True, inverse_dynamics=True)
+    with pytest.raises(InvalidInput, match="`barrier` must be one of adaptive, monotone"):
+        StanceOptions(barrier="mehrotra")
 
 
-@pytest.mark.parametrize(("inverse_dynamics", "element_derivatives", "lifted_forces"),
-                         [(False, False, False), (True, False, False), (False, True, False),
-                          (False, False, True), (False, True, True)])
+@pytest.mark.parametrize(("inverse_dynamics", "element_derivatives", "lifted_forces",
+                          "barrier"),
+                         [(False, False, False, "monotone"), (True, False, False, "monotone"),
+                          (False, True, False, "monotone"), (False, False, True, "monotone"),
+                          (False, True, True, "monotone"), (False, True, True, "adaptive")])
 def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens(inverse_dynamics,
                                                              element_derivatives,
-                                                             lifted_forces):
+                                                             lifted_forces, barrier,
+                                                             monkeypatch):
     """Mass 1 rests and is pushed sideways as hard as it can while it sticks: the push
     reaches c mu m g (the cone's edge) and it does not move. Mass 2 lifts off at the
     control jump 0.2 s: the new control's vertical force is at least its weight. Both
     forms of the dynamics (the forces as expressions, as variables with the acceleration
-    explicit, or both as variables), the first two also with element derivatives."""
+    explicit, or both as variables), the first two also with element derivatives, the
+    lifted one also under IPOPT's adaptive barrier (`barrier`, which reaches IPOPT)."""
     margin = 0.9
     p = problem([0.0, 0.0, 1.0, 0.0], [0.0] * 4, horizon=0.4, n_intervals=4,
                 u_lower=[-20.0, 0.0, 0.0, 0.0], u_upper=[20.0, 0.0, 0.0, 40.0],
@@ -163,10 +169,15 @@ def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens(inverse_dynamics,
     stances = (Stance((0, 1), 0.0, 0.2), Stance((0,), 0.2, 0.4))
     options = StanceOptions(cone_margin=margin, tol=1e-10, inverse_dynamics=inverse_dynamics,
                             element_derivatives=element_derivatives,
-                            lifted_forces=lifted_forces)
+                            lifted_forces=lifted_forces, barrier=barrier)
     guess = (t, x, np.zeros((4, 4)))
+    given = []
+    solver = ca.Opti.solver
+    monkeypatch.setattr(ca.Opti, "solver", lambda opti, name, plugin, ipopt: (
+        given.append(ipopt["mu_strategy"]), solver(opti, name, plugin, ipopt))[1])
     plan = resolve_stances(p, stances, options, guess=guess, verbose=False)
     assert plan.solved, plan.ipopt_status
+    assert given == [barrier]
     if lifted_forces:  # the forces are variables: (lambda_n, lambda_t) per closed contact
         # at each of 3 elements x 3 Radau stages per interval, 2 intervals of each stance
         explicit = resolve_stances(p, stances, dataclasses.replace(options,

@@ -1075,12 +1075,12 @@ def test_a_task_sets_the_stance_resolve_in_its_resolve_table(tmp_path):
     path.write_text(shipped.read_text() + "\n[resolve]\ncone_facets = 4\n"
                     "min_normal_force = 1.5\ntouchdown_speed = 0.1\ninterior_rows = 1\n"
                     "contact_tolerance = 1e-6\ncone_margin = 0.9\ndiscovery_residual = 0.02\n"
-                    "lifted_forces = true\n")
+                    "lifted_forces = true\nbarrier = \"adaptive\"\n")
     options = task_plan(path).stages[-1].options
     assert (options.cone_facets, options.min_normal_force, options.touchdown_speed,
             options.interior_rows, options.contact_tolerance, options.cone_margin,
-            options.discovery_residual, options.lifted_forces) == (4, 1.5, 0.1, 1, 1e-6, 0.9,
-                                                                   0.02, True)
+            options.discovery_residual, options.lifted_forces,
+            options.barrier) == (4, 1.5, 0.1, 1, 1e-6, 0.9, 0.02, True, "adaptive")
     assert task_plan(shipped).stages[-1].options.discovery_residual is None
     assert options.open_slip_gains  # the task's own settings stay
     task = load_task(path)
@@ -1092,6 +1092,8 @@ def test_a_task_sets_the_stance_resolve_in_its_resolve_table(tmp_path):
         dataclasses.replace(task, resolve={"discovery_residual": 0.0})
     with pytest.raises(InvalidInput, match="`lifted_forces` must be True or False"):
         dataclasses.replace(task, resolve={"lifted_forces": "yes"})
+    with pytest.raises(InvalidInput, match="`barrier` must be one of"):
+        dataclasses.replace(task, resolve={"barrier": "fast"})
     with pytest.raises(InvalidInput, match="`resolve` sets the stance re-solve"):
         dataclasses.replace(task, exact_resolve=False)
     with pytest.raises(InvalidInput, match="`resolve` must be a table"):

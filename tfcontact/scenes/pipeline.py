@@ -530,6 +530,9 @@ def stance_outcome(plan: StancePlan, setup: PlanSetup, options: StanceOptions,
                         + ("Radau IIA collocation" if options.integrator == "radau"
                            else "RK4 multiple shooting")
                         + (", inverse-dynamics form" if options.inverse_dynamics else "")
+                        + (", contact forces lifted" if options.lifted_forces else "")
+                        + (f", IPOPT's {options.barrier} barrier"
+                           if options.barrier != "monotone" else "")
                         + " on the fixed control grid"}
     if discovery is not None:
         solver["discovery"] = {"status": discovery.status, "objective": discovery.ocp.cost,

@@ -16,7 +16,7 @@ from types import MappingProxyType
 from typing import Any
 
 from tfcontact.errors import InvalidInput, positive_int
-from tfcontact.ocp.stances import StanceOptions, sequence_changes
+from tfcontact.ocp.stances import BARRIERS, StanceOptions, sequence_changes
 from tfcontact.robot.spec import BASES
 from tfcontact.robot.terrain import Plane, Region, Terrain
 from tfcontact.timefreezing import InscribedPyramid, SmoothedCone, SpatialFriction
@@ -26,8 +26,6 @@ GUESSES = ("start", "reference")
 FRICTION_MODELS: dict[str, type[SpatialFriction]] = {"cone": SmoothedCone,
                                                      "pyramid": InscribedPyramid}
 """`Task.friction_model` -> the `Inelastic(friction=...)` strategy it builds."""
-BARRIERS = ("adaptive", "monotone")
-"""IPOPT's barrier parameter updates a task can ask for (`Task.barrier`)."""
 
 
 def finite(value: object, where: str, *, low: float | None = None, strict: bool = False,
@@ -52,7 +50,8 @@ def _names(mapping: Mapping[str, Any], where: str) -> dict[str, Any]:
 
 RESOLVE_SETTINGS = frozenset({"cone_facets", "min_normal_force", "touchdown_speed",
                               "interior_rows", "contact_tolerance", "cone_margin",
-                              "swing_middle", "discovery_residual", "lifted_forces"})
+                              "swing_middle", "discovery_residual", "lifted_forces",
+                              "barrier"})
 """The `tfcontact.ocp.StanceOptions` fields a task's `[resolve]` table may set."""
 
 
@@ -493,7 +492,7 @@ class Task:
             of `RESOLVE_SETTINGS`, each the `tfcontact.ocp.StanceOptions` field of its
             name: `cone_facets`, `min_normal_force`, `touchdown_speed`, `interior_rows`,
             `contact_tolerance`, `cone_margin`, `swing_middle`, `discovery_residual`,
-            `lifted_forces`.
+            `lifted_forces`, `barrier`.
             What a plan of four 3-D feet needed is in benchmarks/legged.md.
         attempts: solves of the plan at most (default: the preset's): a plan that fails
             is solved again from its guess perturbed (`ContactSolverOptions.attempts`).
