@@ -72,25 +72,31 @@ def two_drops():
 
 
 @pytest.mark.parametrize(("integrator", "inverse_dynamics", "element_derivatives",
-                          "lifted_forces"),
-                         [("rk4", False, False, False), ("rk4", False, True, False),
-                          ("radau", False, False, False), ("radau", False, True, False),
-                          ("radau", True, False, False), ("radau", False, False, True),
-                          ("radau", False, True, True)])
+                          "lifted_forces", "barrier"),
+                         [("rk4", False, False, False, "monotone"),
+                          ("rk4", False, True, False, "monotone"),
+                          ("radau", False, False, False, "monotone"),
+                          ("radau", False, True, False, "monotone"),
+                          ("radau", True, False, False, "monotone"),
+                          ("radau", False, False, True, "monotone"),
+                          ("radau", False, True, True, "monotone"),
+                          ("radau", False, True, True, "adaptive")])
 def test_two_drops_touch_down_at_the_free_fall_times_and_stop(integrator, inverse_dynamics,
                                                               element_derivatives,
-                                                              lifted_forces):
+                                                              lifted_forces, barrier):
     """Both masses dropped, the first with a horizontal speed: each touchdown at
     sqrt(2 h / g) (RK4 and Radau IIA integrate free fall exactly), the impact leaves it at rest
     (Lambda_t = -m v_x inside the cone), and the multi-contact reference agrees; Radau in
     three forms of the dynamics (explicit, forces lifted, inverse dynamics), the explicit
     and the lifted one also with their elements differentiated once each
-    (`element_derivatives`). The guess is 10 ms off:
-    the re-solve moves the switches to the closed forms."""
+    (`element_derivatives`). The guess is 10 ms off: the re-solve moves the switches to
+    the closed forms. The controls are fixed at zero, so the NLP is square (no degree of
+    freedom): under IPOPT's adaptive barrier (`barrier`) IPOPT ended it in its restoration
+    phase (Feasible_Point_Found where measured), and its feasible point is its solution."""
     p, stances, guess, (t1, t2) = two_drops()
     options = StanceOptions(tol=1e-10, integrator=integrator, inverse_dynamics=inverse_dynamics,
                             element_derivatives=element_derivatives, threads=2,
-                            lifted_forces=lifted_forces)
+                            lifted_forces=lifted_forces, barrier=barrier)
     plan = resolve_stances(p, stances, options, guess=guess, verbose=False)
     assert plan.solved, plan.ipopt_status
     assert [s.closed for s in plan.stances] == [(), (0,), (0, 1)]

@@ -83,7 +83,10 @@ from tfcontact.verify import (
     state_indices,
 )
 
-SOLVED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+SOLVED = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Feasible_Point_Found")
+"""IPOPT's statuses of a solved stance NLP. Feasible_Point_Found: a square problem (no
+degree of freedom left, e.g. every control fixed by its bounds) whose restoration phase
+reached its constraints: its one feasible point is its solution."""
 INFEASIBLE = "Infeasible_Problem_Detected"
 STEP_ERROR = "Error_In_Step_Computation"
 RESTART_VELOCITY_TOLERANCE = 1e-6
