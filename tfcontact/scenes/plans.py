@@ -90,8 +90,9 @@ PLANS: dict[str, Plan] = {
                 "terrain: the holes as the terrain's, about 7.5 min; --task hand-set: the "
                 "hops on a hand-set schedule instead of a searched one): time-freezing "
                 "homotopy on the reduced task, then exact re-solves along its contact "
-                "sequence (tfcontact.scenes.monoped_exact); on a Zen 3 EPYC the reduced hop is not "
-                "found and every task fails (README, known limits)",
+                "sequence (tfcontact.scenes.monoped_exact); round-off decides whether the "
+                "reduced hop is found: where it is not (a Zen 3 EPYC), every task fails "
+                "(README, known limits)",
         tasks=("full", "reduced", "terrain", "hand-set"),
         stages=monoped_exact.STAGES,
     ),
