@@ -63,3 +63,85 @@ def test_peak_memory_sees_a_block_that_is_gone_until_it_is_reset():
     assert peak_memory() >= before + 0.25
     reset_peak_memory()
     assert peak_memory() < before + 0.25
+
+
+def _expression():
+    """A function of the operations robot dynamics use, and its Hessian."""
+    import casadi as ca
+
+    x = ca.SX.sym("x", 6)
+    e = ca.vertcat(ca.sin(x[0]) * ca.sqrt(x[1] ** 2 + 1) / (x[2] + 3),
+                   ca.atan2(x[3], x[4] + 2), ca.exp(x[5]) * ca.fmax(x[0], x[1]),
+                   ca.power(x[1] ** 2 + 0.5, 1.3), ca.if_else(x[0] > 0, x[1], x[2]),
+                   ca.tanh(x[3]) + ca.log(x[4] ** 2 + 1) * ca.cos(x[2]))
+    return x, [e, ca.hessian(ca.sumsqr(e), x)[0]]
+
+
+def _recording_compiler(tmp_path, real: str):
+    """A compiler command that logs each call, then runs `real`."""
+    log = tmp_path / "calls.log"
+    script = tmp_path / "cc"
+    script.write_text(f'#!/bin/sh\necho "$@" >> {log}\nexec {real} "$@"\n')
+    script.chmod(0o755)
+    return str(script), log
+
+
+def test_compiled_functions_give_the_virtual_machines_values_bit_for_bit(tmp_path):
+    """tcc compiles the function (the compiler is called) and its machine code gives
+    CasADi's virtual machine's values exactly, so IPOPT follows the same iterates; a
+    function above `max_instructions` is left to the virtual machine."""
+    import shutil
+
+    import casadi as ca
+    import numpy as np
+
+    from tfcontact.native import Compiler, compiled
+
+    if shutil.which("tcc") is None:
+        pytest.skip("no tcc on the PATH (Debian's package tcc; .ci/run installs it)")
+    command, log = _recording_compiler(tmp_path, shutil.which("tcc"))
+    x, outputs = _expression()
+    machine = compiled("element", [x], outputs, Compiler(command=command))
+    assert log.exists() and "-shared" in log.read_text()  # compiled and linked
+    plain = ca.Function("element", [x], outputs)
+    for value in np.random.default_rng(0).normal(size=(20, 6)):
+        for a, b in zip(machine(value), plain(value), strict=True):
+            assert np.array_equal(np.asarray(a), np.asarray(b))
+    log.unlink()
+    compiled("element", [x], outputs, Compiler(command=command, max_instructions=10))
+    assert not log.exists()
+
+
+def test_a_compiler_that_fails_leaves_the_function_on_the_virtual_machine():
+    """`false` as the compiler: a warning naming the way out, and a working function."""
+    import numpy as np
+
+    from tfcontact.native import COMPILER_VARIABLE, Compiler, compiled
+
+    x, outputs = _expression()
+    with pytest.warns(RuntimeWarning, match=f"could not compile.*{COMPILER_VARIABLE}=none"):
+        function = compiled("element", [x], outputs, Compiler(command="false"))
+    assert np.isfinite(np.asarray(function(np.ones(6))[0])).all()
+
+
+def test_the_element_compiler_is_chosen_by_the_environment(monkeypatch):
+    """Unset: tcc if on the PATH; "none": no compiler; a command not on the PATH: a clear
+    error naming the variable; bad Compiler fields are refused."""
+    import shutil
+
+    from tfcontact.errors import InvalidInput
+    from tfcontact.native import COMPILER_VARIABLE, Compiler, element_compiler
+
+    monkeypatch.delenv(COMPILER_VARIABLE, raising=False)
+    assert (element_compiler() is None) == (shutil.which("tcc") is None)
+    monkeypatch.setenv(COMPILER_VARIABLE, "none")
+    assert element_compiler() is None
+    monkeypatch.setenv(COMPILER_VARIABLE, "sh")
+    assert element_compiler() == Compiler(command="sh")
+    monkeypatch.setenv(COMPILER_VARIABLE, "no-such-compiler")
+    with pytest.raises(InvalidInput, match=f"{COMPILER_VARIABLE}='no-such-compiler'"):
+        element_compiler()
+    with pytest.raises(InvalidInput, match="max_instructions"):
+        Compiler(max_instructions=0)
+    with pytest.raises(InvalidInput, match="command"):
+        Compiler(command="")

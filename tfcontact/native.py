@@ -5,17 +5,30 @@ process-wide setting; and glibc keeps freed heap pages of large NLPs unless aske
 them back. Both are reached through ctypes here, and nowhere else: `blas_threads` sets the
 count for a block and restores it after, `return_memory` trims the heap between solves,
 and `peak_memory` reads the kernel's high-water mark (`reset_peak_memory` restarts it).
+`compiled` gives a function as machine code when a C compiler is there (`Compiler`,
+`element_compiler`): the same values, evaluated without CasADi's virtual machine.
 """
 
 from __future__ import annotations
 
 import ctypes
 import gc
-from collections.abc import Iterator
+import os
+import shutil
+import tempfile
+import warnings
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import casadi as ca
+
+from tfcontact.errors import InvalidInput, positive_int
+
+COMPILER_VARIABLE = "TFCONTACT_COMPILER"
+"""The environment variable that picks `element_compiler`: unset or empty, Debian's `tcc`
+if it is on the PATH; "none", no compiler; another value, that command."""
 
 
 def casadi_openblas() -> ctypes.CDLL | None:
@@ -84,3 +97,87 @@ def peak_memory() -> float | None:
     except OSError:
         pass
     return None
+
+
+@dataclass(frozen=True)
+class Compiler:
+    """A C compiler that CasADi's shell importer calls to compile a function just in time
+    (CasADi's generated C, compiled, linked and loaded; the files in the temporary folder,
+    removed after loading).
+
+    Measured on the reduced monoped's exact re-solves (benchmarks/monoped_bench.md): tcc's
+    code evaluated the RK4 steps' derivatives 3.5x faster than CasADi's virtual machine,
+    along the same IPOPT iterations (the same arithmetic in the same order: no fused
+    multiply-adds, the same libm). On functions of millions of instructions (solo12's
+    four-foot element) compiled code was no faster: those are bound by memory traffic
+    (benchmarks/legged.md), and `max_instructions` leaves them to the virtual machine.
+
+    Attributes:
+        command: the compiler, also the linker (`command -shared`); on the PATH.
+        flags: its flags when compiling (with -fPIC -c).
+        max_instructions: larger functions are not compiled.
+    """
+
+    command: str = "tcc"
+    flags: tuple[str, ...] = ()
+    max_instructions: int = 1_000_000
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.command, str) or not self.command:
+            raise InvalidInput(f"`command` must name a C compiler, got {self.command!r}")
+        if not all(isinstance(flag, str) for flag in self.flags):
+            raise InvalidInput(f"`flags` must be strings, got {self.flags!r}")
+        object.__setattr__(self, "flags", tuple(self.flags))
+        positive_int(self.max_instructions, "max_instructions")
+
+    def options(self) -> dict:
+        """CasADi's Function options that compile with this compiler."""
+        shell = {"compiler": self.command, "linker": self.command,
+                 "directory": tempfile.gettempdir() + os.sep, "verbose": False}
+        if self.flags:  # (an empty list would reach CasADi as a list of booleans)
+            shell["compiler_flags"] = list(self.flags)
+        return {"jit": True, "compiler": "shell", "jit_options": shell}
+
+
+def element_compiler() -> Compiler | None:
+    """The compiler of `compiled`, from `COMPILER_VARIABLE`: unset or empty, tcc when it is
+    on the PATH (else None: CasADi's virtual machine); "none", None; another value, that
+    command, which must be on the PATH.
+
+    Raises:
+        InvalidInput: the variable names a command that is not on the PATH.
+    """
+    name = os.environ.get(COMPILER_VARIABLE, "").strip()
+    if not name:
+        return Compiler() if shutil.which("tcc") else None
+    if name == "none":
+        return None
+    if shutil.which(name) is None:
+        raise InvalidInput(f"{COMPILER_VARIABLE}={name!r}: no such command on the PATH; "
+                           f"name a C compiler (tcc) or set it to 'none'")
+    return Compiler(command=name)
+
+
+_failed: set[str] = set()
+
+
+def compiled(name: str, inputs: Sequence[ca.SX], outputs: Sequence[ca.SX],
+             compiler: Compiler | None = None) -> ca.Function:
+    """ca.Function(name, inputs, outputs), compiled by `compiler` (default
+    `element_compiler()`) unless there is none or the function has more than its
+    `max_instructions`. A compiler that fails is warned about once and left alone: the
+    function then runs on CasADi's virtual machine, with the same values."""
+    function = ca.Function(name, list(inputs), list(outputs))
+    compiler = element_compiler() if compiler is None else compiler
+    if (compiler is None or compiler.command in _failed
+            or function.n_instructions() > compiler.max_instructions):
+        return function
+    try:
+        return ca.Function(name, list(inputs), list(outputs), compiler.options())
+    except RuntimeError as error:
+        _failed.add(compiler.command)
+        warnings.warn(f"{compiler.command} could not compile {name} (CasADi: "
+                      f"{str(error).strip().splitlines()[-1][:200]}); functions run on "
+                      f"CasADi's virtual machine ({COMPILER_VARIABLE}=none stops trying)",
+                      RuntimeWarning, stacklevel=2)
+        return function

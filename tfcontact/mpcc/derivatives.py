@@ -19,6 +19,7 @@ import numpy as np
 
 from tfcontact.errors import InvalidInput
 from tfcontact.mpcc.problem import RepeatedBlock
+from tfcontact.native import compiled
 
 Triplets = tuple[np.ndarray, np.ndarray, ca.MX]  # rows, columns (-1: drop), values
 
@@ -146,8 +147,9 @@ def _element_part(block: RepeatedBlock, index: np.ndarray, symbols: tuple[ca.SX,
     jac = ca.jacobian(residual, v)
     hess = ca.hessian(ca.dot(lam, residual), v)[0]
     name = block.function.name()
-    element_jacobian = ca.Function(f"{name}_jacobian", [v], [residual, jac])
-    element_hessian = ca.Function(f"{name}_hessian", [v, lam], [hess])
+    # machine code where a compiler is there (`tfcontact.native.compiled`): the same values
+    element_jacobian = compiled(f"{name}_jacobian", [v], [residual, jac])
+    element_hessian = compiled(f"{name}_hessian", [v, lam], [hess])
     V = ca.Function("arguments", list(symbols), [ca.vertcat(*block.arguments)])(X, P)
     lam_e = ca.reshape(lam_g[block.rows.reshape(-1).tolist()], residual.numel(), E)
     r_e, J_e = element_jacobian.map(E, *parallel)(V)
