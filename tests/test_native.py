@@ -145,3 +145,6 @@ def test_the_element_compiler_is_chosen_by_the_environment(monkeypatch):
         Compiler(max_instructions=0)
     with pytest.raises(InvalidInput, match="command"):
         Compiler(command="")
+    with pytest.raises(InvalidInput, match="`flags` must be a sequence of strings"):
+        Compiler(flags="-O1")
+    assert Compiler(flags=["-O1"]).flags == ("-O1",)

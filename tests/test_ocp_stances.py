@@ -177,10 +177,14 @@ def test_a_stick_force_ends_at_the_cone_and_a_lift_off_opens(inverse_dynamics,
                             element_derivatives=element_derivatives,
                             lifted_forces=lifted_forces, barrier=barrier)
     guess = (t, x, np.zeros((4, 4)))
-    given = []
+    given = []  # the barrier each IPOPT solver was built with
     solver = ca.Opti.solver
-    monkeypatch.setattr(ca.Opti, "solver", lambda opti, name, plugin, ipopt: (
-        given.append(ipopt["mu_strategy"]), solver(opti, name, plugin, ipopt))[1])
+
+    def recording_solver(opti, name, plugin, ipopt):
+        given.append(ipopt["mu_strategy"])
+        return solver(opti, name, plugin, ipopt)
+
+    monkeypatch.setattr(ca.Opti, "solver", recording_solver)
     plan = resolve_stances(p, stances, options, guess=guess, verbose=False)
     assert plan.solved, plan.ipopt_status
     assert given == [barrier]

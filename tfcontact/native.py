@@ -125,8 +125,8 @@ class Compiler:
     def __post_init__(self) -> None:
         if not isinstance(self.command, str) or not self.command:
             raise InvalidInput(f"`command` must name a C compiler, got {self.command!r}")
-        if not all(isinstance(flag, str) for flag in self.flags):
-            raise InvalidInput(f"`flags` must be strings, got {self.flags!r}")
+        if isinstance(self.flags, str) or not all(isinstance(f, str) for f in self.flags):
+            raise InvalidInput(f"`flags` must be a sequence of strings, got {self.flags!r}")
         object.__setattr__(self, "flags", tuple(self.flags))
         positive_int(self.max_instructions, "max_instructions")
 

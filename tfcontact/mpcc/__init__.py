@@ -4,6 +4,7 @@ from tfcontact.mpcc.derivatives import repeated_block_derivatives
 from tfcontact.mpcc.problem import Mpcc, RepeatedBlock
 from tfcontact.mpcc.relaxation import RELAXATIONS, L1Penalty, LinfPenalty, Relaxation, Scholtes
 from tfcontact.mpcc.solver import (
+    BARRIERS,
     LINEAR_SOLVERS,
     Homotopy,
     HomotopyStep,
@@ -16,6 +17,7 @@ from tfcontact.mpcc.solver import (
 )
 
 __all__ = [
+    "BARRIERS",
     "LINEAR_SOLVERS",
     "RELAXATIONS",
     "Homotopy",

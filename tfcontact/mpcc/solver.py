@@ -111,6 +111,9 @@ class Homotopy:
 
 LINEAR_SOLVERS = ("mumps", "spral")
 """IPOPT's linear solvers in CasADi's wheel (HSL's ma27, ma57, ... are not in it)."""
+BARRIERS = ("adaptive", "monotone")
+"""IPOPT's updates of the barrier parameter (`mu_strategy`) a solve can ask for (a task's
+`barrier`, a stance re-solve's `StanceOptions.barrier`)."""
 
 
 @dataclass(frozen=True)

@@ -54,6 +54,7 @@ import numpy as np
 
 from tfcontact.errors import InvalidInput, SolveFailed, nonnegative_number, positive_int
 from tfcontact.fesd.tableau import RadauIIA, lagrange_weights
+from tfcontact.mpcc import BARRIERS
 from tfcontact.ocp.contact import ContactProblem, ContactResult
 from tfcontact.ocp.goals import EndHeight
 from tfcontact.ocp.nodes import (
@@ -95,9 +96,6 @@ velocity this small counts as zero at a mode change (and is projected to zero). 
 contact's velocity is zero in the plan to the integrator's accuracy only: a bolt restart
 whose standing foot moved up at 1.4e-7 m/s (the simulator's default tolerance 1e-7) flew
 and landed back 200 times at its start; with 1e-6 it stood, 3e-6 from the plan."""
-BARRIERS = ("adaptive", "monotone")
-"""IPOPT's updates of the barrier parameter (`mu_strategy`) a solve can ask for (a stance
-re-solve's `StanceOptions.barrier`, a task's `barrier`)."""
 RESTART_PUSH = 1e-9
 """A capped stance NLP solved again starts from its iterate with the barrier parameter
 and IPOPT's warm-start pushes at this value (as `tfcontact.mpcc.Ipopt.warm_start_push`)."""

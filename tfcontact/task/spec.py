@@ -16,7 +16,8 @@ from types import MappingProxyType
 from typing import Any
 
 from tfcontact.errors import InvalidInput, positive_int
-from tfcontact.ocp.stances import BARRIERS, StanceOptions, sequence_changes
+from tfcontact.mpcc import BARRIERS
+from tfcontact.ocp.stances import StanceOptions, sequence_changes
 from tfcontact.robot.spec import BASES
 from tfcontact.robot.terrain import Plane, Region, Terrain
 from tfcontact.timefreezing import InscribedPyramid, SmoothedCone, SpatialFriction
