@@ -266,6 +266,29 @@ def test_a_flight_no_control_jump_can_hold_is_closed_over():
         ((0, 1), 0.0), ((1,), 0.05), ((0, 1), 0.07)]
 
 
+def test_a_tap_at_a_control_jump_touches_down_before_it_lifts_off():
+    """A foot that lands on the very sample of a control jump and rises after it (the
+    relaxed walk of biped-walk's sweep start 003: down at 0.2 s, 5.9 mm up at 0.227 s):
+    its touchdown goes just before its own lift-off at that jump. The rule before put it
+    just after, as for another foot's touchdown there, and refused the schedule ("contacts
+    [0] change twice within one control interval")."""
+    t = np.array([0.0, 0.05, 0.1, 0.133, 0.15, 0.182, 0.2, 0.227, 0.25, 0.3, 0.4, 0.5, 1.0])
+    gaps = np.zeros((len(t), 2))
+    gaps[:, 0] = [0.0, 0.0, 0.003, 0.0057, 0.0061, 0.0028, 0.0, 0.0059, 0.02, 0.1, 0.05,
+                  0.0, 0.0]
+    stances = stance_schedule(t, gaps, 1.0, 20)
+    assert [s.closed for s in stances] == [(0, 1), (1,), (0, 1), (1,), (0, 1)]
+    assert stances[1].start == pytest.approx(0.1)  # its first lift-off
+    assert 0.2 - 1e-6 < stances[2].start < 0.2 == pytest.approx(stances[3].start)
+    assert stances[4].start == pytest.approx(0.5)
+    # another foot's touchdown on that sample still goes after the lift-off
+    gaps[:, 1] = np.where((t > 0.05) & (t < 0.2), 0.01, 0.0)
+    gaps[:, 0] = np.where(t > 0.19, 0.01, 0.0)
+    stances = stance_schedule(t, gaps, 1.0, 20)
+    assert [s.closed for s in stances] == [(0, 1), (0,), (), (1,)]
+    assert stances[3].start > 0.2
+
+
 def test_bad_schedules_are_refused():
     p = problem([0.0, 0.0, 1.0, 0.0], [0.0] * 4, horizon=0.4, n_intervals=4,
                 u_lower=[0.0] * 4, u_upper=[0.0] * 4, running=lambda tf: ca.DM(0.0))

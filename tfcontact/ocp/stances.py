@@ -434,9 +434,12 @@ def stance_schedule(t: np.ndarray, gaps: np.ndarray, horizon: float, n_intervals
         if lift in changes and changes[lift][0]:
             # a touchdown sampled at this very control jump: it goes just after the
             # lift-off (inside the next interval) or just before it, in the samples'
-            # order; the re-solve moves it freely inside its interval
+            # order; the re-solve moves it freely inside its interval. The contact's
+            # own touchdown there (a tap: down at the jump's sample, up after it) is
+            # before its lift-off.
             touchdown_at = next(td for td, _ in touchdowns if td == lift)
-            nudged = lift + (1e-6 if at <= touchdown_at else -1e-6) * step
+            after = at <= touchdown_at and i not in changes[lift][0]
+            nudged = lift + (1e-6 if after else -1e-6) * step
             changes[nudged] = changes.pop(lift)
         changes.setdefault(lift, (set(), set()))[1].add(i)
     stances = [Stance(tuple(closed0), 0.0, horizon)]
