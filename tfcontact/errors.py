@@ -5,6 +5,7 @@ Every message names the problem and, where there is one, the fix.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
@@ -33,6 +34,15 @@ def nonnegative_number(value: object, name: str) -> float:
             or not 0 <= value < np.inf):
         raise InvalidInput(f"`{name}` must be a finite number >= 0, got {value!r}")
     return float(value)
+
+
+def one_of(value: object, choices: Iterable[str], name: str) -> str:
+    """`value` if it is one of `choices` (names of settings), else `InvalidInput` naming
+    the argument `name` and the choices."""
+    choices = tuple(choices)
+    if not isinstance(value, str) or value not in choices:
+        raise InvalidInput(f"`{name}` must be one of {', '.join(choices)}, got {value!r}")
+    return value
 
 
 class IncompatibleOptions(TfcontactError, ValueError):

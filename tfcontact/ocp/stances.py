@@ -52,7 +52,13 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from tfcontact.errors import InvalidInput, SolveFailed, nonnegative_number, positive_int
+from tfcontact.errors import (
+    InvalidInput,
+    SolveFailed,
+    nonnegative_number,
+    one_of,
+    positive_int,
+)
 from tfcontact.fesd.tableau import RadauIIA, lagrange_weights
 from tfcontact.mpcc import BARRIERS
 from tfcontact.ocp.contact import ContactProblem, ContactResult
@@ -303,9 +309,7 @@ class StanceOptions:
         if self.lifted_forces and (self.integrator == "rk4" or self.inverse_dynamics):
             raise InvalidInput("`lifted_forces` needs integrator='radau' and not "
                                "inverse_dynamics (which lifts the forces already)")
-        if self.barrier not in BARRIERS:
-            raise InvalidInput(f"`barrier` must be one of {', '.join(BARRIERS)}, got "
-                               f"{self.barrier!r}")
+        one_of(self.barrier, BARRIERS, "barrier")
         if not isinstance(self.element_derivatives, bool):
             raise InvalidInput(f"`element_derivatives` must be True or False, got "
                                f"{self.element_derivatives!r}")

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
-from tfcontact.errors import InvalidInput, positive_int
+from tfcontact.errors import InvalidInput, one_of, positive_int
 from tfcontact.mpcc import BARRIERS
 from tfcontact.ocp.stances import StanceOptions, sequence_changes
 from tfcontact.robot.spec import BASES
@@ -599,12 +599,8 @@ class Task:
         object.__setattr__(self, "waypoints", waypoints)
         if not isinstance(self.goals, Goals) or not isinstance(self.costs, Costs):
             raise InvalidInput("`goals` and `costs` must be Goals and Costs")
-        if self.solver not in SOLVER_PRESETS:
-            raise InvalidInput(f"`solver` must be one of {', '.join(SOLVER_PRESETS)}, got "
-                               f"{self.solver!r}")
-        if self.guess not in GUESSES:
-            raise InvalidInput(f"`guess` must be one of {', '.join(GUESSES)}, got "
-                               f"{self.guess!r}")
+        one_of(self.solver, SOLVER_PRESETS, "solver")
+        one_of(self.guess, GUESSES, "guess")
         object.__setattr__(self, "a_n", finite(self.a_n, "a_n", low=0.0, strict=True,
                                                unit="m/s^2"))
         object.__setattr__(self, "gap_scale", finite(self.gap_scale, "gap_scale", low=0.0,
@@ -631,15 +627,12 @@ class Task:
             object.__setattr__(self, "complementarity_tolerance", finite(
                 self.complementarity_tolerance, "complementarity_tolerance", low=0.0,
                 strict=True))
-        if self.friction_model not in FRICTION_MODELS:
-            raise InvalidInput(f"`friction_model` must be one of {', '.join(FRICTION_MODELS)}, "
-                               f"got {self.friction_model!r}")
+        one_of(self.friction_model, FRICTION_MODELS, "friction_model")
         if self.finite_elements is not None:
             object.__setattr__(self, "finite_elements",
                                positive_int(self.finite_elements, "finite_elements"))
-        if self.barrier is not None and self.barrier not in BARRIERS:
-            raise InvalidInput(f"`barrier` must be one of {', '.join(BARRIERS)}, got "
-                               f"{self.barrier!r}")
+        if self.barrier is not None:
+            one_of(self.barrier, BARRIERS, "barrier")
         if not isinstance(self.exact_resolve, bool):
             raise InvalidInput(f"`exact_resolve` must be true or false, got "
                                f"{self.exact_resolve!r}")
