@@ -148,3 +148,40 @@ def test_the_element_compiler_is_chosen_by_the_environment(monkeypatch):
     with pytest.raises(InvalidInput, match="`flags` must be a sequence of strings"):
         Compiler(flags="-O1")
     assert Compiler(flags=["-O1"]).flags == ("-O1",)
+
+
+def test_the_same_expression_is_compiled_once_and_the_cache_is_bounded(tmp_path, monkeypatch):
+    """A homotopy's next level builds the same element functions again: `compiled` takes
+    them from its cache (the compiler is not called, the values are the same), and the
+    cache keeps at most `CACHE_SIZE` functions (each holds a shared object in /tmp)."""
+    import shutil
+
+    import casadi as ca
+    import numpy as np
+
+    import tfcontact.native as native
+    from tfcontact.native import Compiler, compiled
+
+    if shutil.which("tcc") is None:
+        pytest.skip("no tcc on the PATH (Debian's package tcc; .ci/run installs it)")
+    command, log = _recording_compiler(tmp_path, shutil.which("tcc"))
+    compiler = Compiler(command=command)
+
+    def calls() -> int:
+        return sum("-shared" in line for line in log.read_text().splitlines())
+
+    x, outputs = _expression()
+    first = compiled("level_1_hessian", [x], outputs, compiler)
+    assert calls() == 1
+    y = ca.SX.sym("x", 6)  # new symbols, the same expression
+    again = compiled("level_2_hessian", [y], ca.substitute(outputs, [x], [y]), compiler)
+    assert calls() == 1 and again is first
+    value = np.linspace(-1, 1, 6)
+    assert np.array_equal(np.asarray(again(value)[1]), np.asarray(first(value)[1]))
+    compiled("other", [x], [outputs[0] + 1], compiler)  # another expression: compiled
+    assert calls() == 2
+    monkeypatch.setattr(native, "CACHE_SIZE", 1)
+    compiled("third", [x], [outputs[0] * 2], compiler)  # evicts the first two
+    assert calls() == 3
+    compiled("level_3_hessian", [x], outputs, compiler)
+    assert calls() == 4

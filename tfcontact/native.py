@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import ctypes
 import gc
+import hashlib
 import os
 import shutil
 import tempfile
 import warnings
+from collections import OrderedDict
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -160,20 +162,38 @@ def element_compiler() -> Compiler | None:
 
 _failed: set[str] = set()
 
+CACHE_SIZE = 32
+"""How many compiled functions `compiled` keeps for reuse (least recently used first
+out). Each holds its shared object in the temporary folder while it lives, so the cache
+is bounded: a long-lived process (a sweep's worker) does not fill the folder."""
+
+_cache: OrderedDict[tuple[str, Compiler], ca.Function] = OrderedDict()
+
 
 def compiled(name: str, inputs: Sequence[ca.SX], outputs: Sequence[ca.SX],
              compiler: Compiler | None = None) -> ca.Function:
     """ca.Function(name, inputs, outputs), compiled by `compiler` (default
     `element_compiler()`) unless there is none or the function has more than its
     `max_instructions`. A compiler that fails is warned about once and left alone: the
-    function then runs on CasADi's virtual machine, with the same values."""
+    function then runs on CasADi's virtual machine, with the same values.
+
+    The same expression compiled again (a homotopy's next level, another schedule's NLP
+    of the same robot: the reduced monoped builds 22 distinct element functions 44 times)
+    is taken from a cache of the last `CACHE_SIZE` instead; its name then stays the first
+    one's."""
     function = ca.Function(name, list(inputs), list(outputs))
     compiler = element_compiler() if compiler is None else compiler
     if (compiler is None or compiler.command in _failed
             or function.n_instructions() > compiler.max_instructions):
         return function
+    # the serialised graph names the function: key on one with a fixed name
+    graph = ca.Function("element", list(inputs), list(outputs)).serialize()
+    key = (hashlib.sha256(graph.encode()).hexdigest(), compiler)
+    if key in _cache:
+        _cache.move_to_end(key)
+        return _cache[key]
     try:
-        return ca.Function(name, list(inputs), list(outputs), compiler.options())
+        machine = ca.Function(name, list(inputs), list(outputs), compiler.options())
     except RuntimeError as error:
         _failed.add(compiler.command)
         warnings.warn(f"{compiler.command} could not compile {name} (CasADi: "
@@ -181,3 +201,7 @@ def compiled(name: str, inputs: Sequence[ca.SX], outputs: Sequence[ca.SX],
                       f"CasADi's virtual machine ({COMPILER_VARIABLE}=none stops trying)",
                       RuntimeWarning, stacklevel=2)
         return function
+    _cache[key] = machine
+    while len(_cache) > CACHE_SIZE:
+        _cache.popitem(last=False)
+    return machine
