@@ -1070,7 +1070,7 @@ def test_a_task_sets_the_stance_resolve_in_its_resolve_table(tmp_path):
 
     from tfcontact.scenes.plans import task_plan
 
-    shipped = shipped_tasks()["biped-walk"]
+    shipped = shipped_tasks()["biped-walk-short"]  # a stance re-solve, no [resolve] table
     path = tmp_path / "walk.toml"
     path.write_text(shipped.read_text() + "\n[resolve]\ncone_facets = 4\n"
                     "min_normal_force = 1.5\ntouchdown_speed = 0.1\ninterior_rows = 1\n"
