@@ -348,3 +348,34 @@ def test_the_multicontact_reference_fails_a_wrong_interval_and_an_unmeasured_kic
     assert v.defect_sum < 1e-3 and np.isnan(v.open_loop_amplification)
     assert not v.open_loop_unstable and not v.passed
     assert any("the amplification is not measured" in note for note in v.notes)
+
+
+def test_a_multicontact_replay_that_falls_and_then_stops_is_judged_where_it_fell(
+        standing_plan):
+    """The multi-contact replay of the standing plan capped at 4 contact events: it falls
+    over (measured: 0.64 from the plan at the boundary t = 0.40 s, the third) and then
+    stops on its cap at t = 0.91 s, so it has no end to compare. Judged where it left the
+    plan, the kicked replays up to that boundary amplify (measured x2.3e5) the local
+    defects before it (6.5e-5) past its deviation there: the plan passes as it does
+    uncapped. With the 5 N m torque in interval 5 it still fails on its local defects."""
+    from dataclasses import replace
+
+    from tfcontact.ocp.contact import verify_plan
+    from tfcontact.verify import MultiContactOptions, MultiContactReplay
+
+    mp, options, result = standing_plan
+    capped = MultiContactReplay(simulation=MultiContactOptions(max_events=4))
+    options = replace(options, verify=replace(options.verify, replay=capped))
+    v = verify_plan(mp.problem, result.system, result.ocp, result.physical, options)
+    assert v.method == "event-driven multi-contact reference (stopped)"
+    assert np.isinf(v.end_state_deviation) and v.defect_sum < 1e-3
+    departure = next(note for note in v.notes if "after leaving the plan" in note)
+    assert "(boundary 3)" in departure and "passes on the local defects" in departure
+    assert v.open_loop_amplification * v.defect_sum > options.verify.end_state_tolerance
+    assert v.open_loop_unstable and v.passed
+
+    u = result.ocp.u.copy()
+    u[4, 0] = 5.0
+    v = verify_plan(mp.problem, result.system, replace(result.ocp, u=u), result.physical,
+                    options)
+    assert v.defect_sum > options.verify.end_state_tolerance and not v.passed

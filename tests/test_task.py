@@ -1217,7 +1217,8 @@ def test_a_standing_starts_kick_is_taken_by_its_contacts(monkeypatch, tmp_path):
     problem = build_task(task).problem
     captured = {}
 
-    def capture(plan, tolerance, deviation, defects, reference_end, notes, replay_end):
+    def capture(plan, tolerance, deviation, defects, reference_end, notes, replay_end,
+                stopped=None):
         captured.update(x0=plan.x0, u=plan.controls, replay_end=replay_end)
         return True, 0.0, float("nan")
 

@@ -88,6 +88,7 @@ from tfcontact.verify import (
     multicontact_local_defects,
     replay_multicontact,
     state_indices,
+    stopped_replay,
 )
 
 SOLVED = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Feasible_Point_Found")
@@ -1309,6 +1310,25 @@ def verify_stances(problem: ContactProblem, stances: tuple[Stance, ...], t: np.n
     if budget.skipped:
         notes.append(f"the reference used up its budget of {options.budget} model "
                      f"evaluations: {budget.skipped} local-defect restarts not run")
+    dyn = StanceDynamics(cls, options.baumgarte)
+    settle = dyn.impact(stances[0].closed) if stances[0].closed else None
+
+    def replay_to(start: np.ndarray, boundary: int) -> np.ndarray:
+        if settle is not None:
+            # a kicked start velocity as the contacts down at the start take it (the
+            # inelastic impact leaving them at rest): a kick that moves a standing foot
+            # into or off the ground is no perturbation of the plan's motion, and the
+            # reference chattered on solo12's four feet until it stopped
+            start = np.asarray(settle(start)[0], dtype=float).ravel()
+        kicked = replay_multicontact(cls, start, clocks[:boundary + 1], u[:boundary],
+                                     horizon if boundary == n_int else float(clocks[boundary]),
+                                     options=EvaluationBudget(options.budget).options(
+                                         simulation))
+        if not kicked.success:
+            raise SolveFailed(f"kicked multi-contact replay stopped: {kicked.message}", kicked)
+        return kicked.final_state()
+
+    stopped = None
     if sim.success:
         deviation = sim.deviation_at(horizon, boundary_states[-1])
         reference_end = sim.final_state()
@@ -1321,27 +1341,11 @@ def verify_stances(problem: ContactProblem, stances: tuple[Stance, ...], t: np.n
         method = "event-driven multi-contact reference (stopped)"
         notes.append(f"multi-contact reference stopped at t = {sim.t[-1]:.6g} s: "
                      f"{sim.message}")
-
-    dyn = StanceDynamics(cls, options.baumgarte)
-    settle = dyn.impact(stances[0].closed) if stances[0].closed else None
-
-    def replay_end(start: np.ndarray) -> np.ndarray:
-        if settle is not None:
-            # a kicked start velocity as the contacts down at the start take it (the
-            # inelastic impact leaving them at rest): a kick that moves a standing foot
-            # into or off the ground is no perturbation of the plan's motion, and the
-            # reference chattered on solo12's four feet until it stopped
-            start = np.asarray(settle(start)[0], dtype=float).ravel()
-        kicked = replay_multicontact(cls, start, clocks, u, horizon,
-                                     options=EvaluationBudget(options.budget).options(
-                                         simulation))
-        if not kicked.success:
-            raise SolveFailed(f"kicked multi-contact replay stopped: {kicked.message}", kicked)
-        return kicked.final_state()
+        stopped = stopped_replay(sim, replayed, replay_to)
 
     end_ok, defect_sum, amplification = end_state_check(
         replayed, options.end_state_tolerance, deviation, defects, reference_end, notes,
-        replay_end)
+        lambda start: replay_to(start, n_int), stopped)
     min_gap = float(np.min(np.asarray(dyn.gaps(x.T))))
     # the closed contacts' forces at both ends of each segment between two nodes
     starts = np.array([s.start for s in stances])

@@ -80,6 +80,7 @@ from tfcontact.verify.multicontact import (
     multicontact_local_defects,
     replay_multicontact,
     simulate_multicontact,
+    stopped_replay,
 )
 from tfcontact.verify.options import VerifyOptions
 from tfcontact.verify.plan import TimeFreezingPlan, check_time_freezing_plan, state_indices
@@ -96,7 +97,10 @@ from tfcontact.verify.replay import (
     LOCAL_DEFECT_IMPACT_WINDOW,
     SENSITIVITY_KICK,
     ReplayedPlan,
+    ReplayTo,
+    StoppedReplay,
     defect_segments,
+    departure_check,
     end_state_check,
     local_defects,
     open_loop_sensitivity,
@@ -129,9 +133,11 @@ __all__ = [
     "ReferenceSimulation",
     "Replay",
     "ReplayOutcome",
+    "ReplayTo",
     "ReplayedPlan",
     "SimulationStatus",
     "StackedFunction",
+    "StoppedReplay",
     "TimeFreezingPlan",
     "Verification",
     "VerifyOptions",
@@ -144,6 +150,7 @@ __all__ = [
     "collocation_impulses",
     "contact_impulses",
     "defect_segments",
+    "departure_check",
     "end_state_check",
     "friction_cone_violation",
     "ground_obstacle",
@@ -160,5 +167,6 @@ __all__ = [
     "simulate_impacts",
     "simulate_multicontact",
     "solve_lcp",
+    "stopped_replay",
     "state_indices",
 ]

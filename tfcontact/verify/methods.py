@@ -43,8 +43,15 @@ from tfcontact.verify.multicontact import (
     MultiContactSimulation,
     multicontact_local_defects,
     replay_multicontact,
+    stopped_replay,
 )
-from tfcontact.verify.replay import ReplayEnd, defect_segments, reference_deviation
+from tfcontact.verify.replay import (
+    ReplayEnd,
+    ReplayTo,
+    StoppedReplay,
+    defect_segments,
+    reference_deviation,
+)
 
 if TYPE_CHECKING:
     from tfcontact.verify.plan import TimeFreezingPlan
@@ -63,6 +70,8 @@ class ReplayOutcome:
         local_defects: per control interval (`local_defects`); empty: not computed.
         replay_end: that replay from another start, for the open-loop amplification
             (`end_state_check`); None: the exact-impact reference's.
+        stopped: the independent replay as far as it got, where it stopped before T
+            (`end_state_check` judges it where it left the plan).
     """
 
     deviation: float
@@ -70,6 +79,7 @@ class ReplayOutcome:
     reference_end: np.ndarray | None = None
     local_defects: tuple[float, ...] = ()
     replay_end: ReplayEnd | None = None
+    stopped: StoppedReplay | None = None
 
 
 class Replay(ABC):
@@ -179,9 +189,11 @@ class MultiContactReplay(Replay):
 
     def simulate(self, plan: TimeFreezingPlan, gap_tolerance: float,
                  budget: EvaluationBudget | None = None,
-                 x0: np.ndarray | None = None) -> MultiContactSimulation:
+                 x0: np.ndarray | None = None,
+                 until: int | None = None) -> MultiContactSimulation:
         """The open-loop replay of the plan's physical controls from its start (or `x0`)
-        to T (within `budget` if given); a failure is the result's status.
+        to T (or control-interval boundary `until`), within `budget` if given; a failure
+        is the result's status.
 
         Raises:
             IncompatibleOptions: a contact with restitution > 0.
@@ -193,8 +205,11 @@ class MultiContactReplay(Replay):
                                       f"only; {elastic} have restitution > 0")
         replayed = plan.replayed()
         options = self.options(gap_tolerance)
-        sim = replay_multicontact(cls, replayed.x0 if x0 is None else x0, replayed.clocks,
-                                  replayed.controls, replayed.horizon,
+        last = len(replayed.controls) if until is None else until
+        sim = replay_multicontact(cls, replayed.x0 if x0 is None else x0,
+                                  replayed.clocks[:last + 1], replayed.controls[:last],
+                                  replayed.horizon if until is None
+                                  else float(replayed.clocks[until]),
                                   options=options if budget is None
                                   else budget.options(options))
         if budget is not None:
@@ -210,6 +225,22 @@ class MultiContactReplay(Replay):
                 raise SolveFailed(f"kicked multi-contact replay stopped: {sim.message}", sim)
             return sim.final_state()
         return end
+
+    def replay_to(self, plan: TimeFreezingPlan, gap_tolerance: float) -> ReplayTo:
+        """The open-loop replay from another start up to a control-interval boundary,
+        each within its own `budget`; one that stops raises `SolveFailed`."""
+        def to(x0: np.ndarray, boundary: int) -> np.ndarray:
+            sim = self.simulate(plan, gap_tolerance, EvaluationBudget(self.budget), x0,
+                                until=boundary)
+            if not sim.success:
+                raise SolveFailed(f"kicked multi-contact replay stopped: {sim.message}", sim)
+            return sim.final_state()
+        return to
+
+    def stopped(self, plan: TimeFreezingPlan, sim: MultiContactSimulation,
+                gap_tolerance: float) -> StoppedReplay:
+        """`sim`, an open-loop replay that stopped, as `end_state_check` reads it."""
+        return stopped_replay(sim, plan.replayed(), self.replay_to(plan, gap_tolerance))
 
     def outcome(self, plan: TimeFreezingPlan, sim: MultiContactSimulation,
                 defects: tuple[float, ...], gap_tolerance: float) -> ReplayOutcome:
@@ -243,7 +274,8 @@ class MultiContactReplay(Replay):
                          "plan's motion needs more")
         if not sim.success:
             return ReplayOutcome(math.inf, "event-driven multi-contact reference (stopped)",
-                                 local_defects=defects)
+                                 local_defects=defects,
+                                 stopped=self.stopped(plan, sim, gap_tolerance))
         return self.outcome(plan, sim, defects, gap_tolerance)
 
 
@@ -346,4 +378,6 @@ class AutoReplay(Replay):
             if sim.success:
                 return self.multicontact.outcome(plan, sim, defects, gap_tolerance)
             notes.append(MultiContactReplay.stop_note(sim) + "; FESD used")
+            return replace(self.fallback.run(plan, gap_tolerance, notes), local_defects=defects,
+                           stopped=self.multicontact.stopped(plan, sim, gap_tolerance))
         return replace(self.fallback.run(plan, gap_tolerance, notes), local_defects=defects)

@@ -79,7 +79,12 @@ from tfcontact.errors import IncompatibleOptions, InvalidInput, TfcontactError, 
 from tfcontact.timefreezing.cls import ComplementarityLagrangianSystem
 from tfcontact.verify.lcp import solve_lcp
 from tfcontact.verify.reference import StackedFunction, checked_control
-from tfcontact.verify.replay import LOCAL_DEFECT_IMPACT_WINDOW, ReplayedPlan
+from tfcontact.verify.replay import (
+    LOCAL_DEFECT_IMPACT_WINDOW,
+    ReplayedPlan,
+    ReplayTo,
+    StoppedReplay,
+)
 
 
 class ContactMode(StrEnum):
@@ -951,6 +956,24 @@ def replay_multicontact(
                                  options=options, breakpoints=clocks[1:])
 
 
+def stopped_replay(sim: MultiContactSimulation, plan: ReplayedPlan,
+                   replay_to: ReplayTo) -> StoppedReplay:
+    """What `end_state_check` reads of `sim`, an open-loop replay of `plan` that stopped:
+    its deviation from the plan and its state at each control-interval boundary before
+    its stop (an impact within `LOCAL_DEFECT_IMPACT_WINDOW` of an interval of a boundary
+    counts on either side of it); `replay_to` replays from another start."""
+    stop = float(sim.t[-1]) if sim.t.size else 0.0
+    reached = np.flatnonzero(plan.clocks < stop)
+    window = LOCAL_DEFECT_IMPACT_WINDOW * plan.horizon / (len(plan.clocks) - 1)
+    # a time-freezing plan's clock may start a round-off before 0
+    times = np.maximum(plan.clocks[reached], sim.t[0]) if sim.t.size else []
+    deviations = np.array([sim.deviation_at(t, plan.states[k], window)
+                           for t, k in zip(times, reached, strict=True)])
+    states = np.array([sim.state_at(t) for t in times]
+                      ).reshape(len(reached), plan.states.shape[1])
+    return StoppedReplay(stop, deviations, states, replay_to)
+
+
 __all__ = [
     "ContactEvent",
     "ContactImpact",
@@ -962,6 +985,7 @@ __all__ = [
     "multicontact_local_defects",
     "replay_multicontact",
     "simulate_multicontact",
+    "stopped_replay",
 ]
 
 
