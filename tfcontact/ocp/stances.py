@@ -1281,7 +1281,8 @@ def verify_stances(problem: ContactProblem, stances: tuple[Stance, ...], t: np.n
     """The checks of a stance plan given by its arrays: the multi-contact reference
     replays the controls open loop from the start and restarts on each control interval
     from the plan's state (local defects; an open-loop unstable plan passes on them with
-    the kicked replay's amplification, `end_state_check`); the gaps at the nodes; the
+    the kicked replay's amplification, `end_state_check`; a replay that stopped is judged
+    where it left the plan, `departure_check`); the gaps at the nodes; the
     closed contacts' forces in their cones (recomputed from the nodes' states and
     controls) and the node times non-decreasing up to the horizon."""
     options = options or StanceOptions()

@@ -134,7 +134,8 @@ class MultiContactReplay(Replay):
     An open-loop unstable plan (a biped balancing on its feet) may pass on its local
     defects as with the exact reference (`end_state_check`): this simulator is the replay
     kicked for the amplification. A kicked replay that stops (Painleve, event cap, budget)
-    measures nothing, and the check then fails.
+    measures nothing, and the check then fails. An open-loop replay that stops before T is
+    judged where it left the plan (`departure_check`).
 
     Args:
         simulation: the simulator's `MultiContactOptions` (default: its defaults); its
@@ -148,9 +149,10 @@ class MultiContactReplay(Replay):
             solo12 jump: 1e6 evaluations, 83 s, per restart). About 40 s of solo12.
 
     A simulation that stops with a status (Painleve, event cap, budget) is a failed
-    replay, not an error: the deviation is inf and the notes give the status and where
-    it stopped (a failed NLP's plan may chatter at its start; `solve_contact` reports
-    such a plan as unverified instead of raising).
+    replay, not an error: the deviation is inf, the notes give the status and where it
+    stopped, and the end-state check is made where it left the plan, if it did (a failed
+    NLP's plan may chatter at its start; `solve_contact` reports such a plan as
+    unverified instead of raising).
 
     Raises (from `run`): `IncompatibleOptions` for a contact with restitution > 0;
     `InvalidInput` for a start inside an obstacle.

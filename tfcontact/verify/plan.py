@@ -143,7 +143,8 @@ def check_time_freezing_plan(plan: TimeFreezingPlan,
     Raises:
         TfcontactError: `ExactReplay()` where its simulator does not apply or stops,
             `MultiContactReplay()` where it does not apply (a multi-contact simulation
-            that stops fails the end-state check, its status in the notes).
+            that stops is judged where it left the plan, `departure_check`, its status
+            in the notes).
     """
     options = options if options is not None else VerifyOptions()
     system = plan.system
