@@ -373,6 +373,7 @@ def test_a_multicontact_replay_that_falls_and_then_stops_is_judged_where_it_fell
     assert "(boundary 3)" in departure and "passes on the local defects" in departure
     assert v.open_loop_amplification * v.defect_sum > options.verify.end_state_tolerance
     assert v.open_loop_unstable and v.passed
+    assert "the replay left the plan, then stopped" in v.summary()
 
     u = result.ocp.u.copy()
     u[4, 0] = 5.0

@@ -45,7 +45,9 @@ class Verification:
             of + and -), divided by the kick [-]; nan: not measured. The end state passes
             if amplification x `defect_sum` reaches the open-loop deviation: the plan is
             locally right and open-loop unstable (a legged robot balancing on a point
-            foot, a hopper after several impacts).
+            foot, a hopper after several impacts). For a replay that stopped before T
+            (`end_state_deviation` inf), measured up to the control-interval boundary
+            where it left the plan (`departure_check`).
         open_loop_unstable: the end-state check passed that way (on `defect_sum`), not on
             the open-loop replay.
     """
@@ -74,8 +76,12 @@ class Verification:
     def summary(self) -> str:
         tol = self.tolerances
         flag = "PASSED" if self.passed else "FAILED"
-        route = ("; open-loop unstable, passed on the local defects"
-                 if self.open_loop_unstable else "")
+        route = ""
+        if self.open_loop_unstable:
+            route = ("; open-loop unstable, passed on the local defects"
+                     if np.isfinite(self.end_state_deviation) else
+                     "; the replay left the plan, then stopped: open-loop unstable, passed "
+                     "on the local defects")
         return (
             f"verification {flag} ({self.method}): end-state deviation "
             f"{self.end_state_deviation:.2e} (tol {tol.get('end_state', float('nan')):.0e}"
