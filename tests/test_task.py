@@ -1245,6 +1245,62 @@ def test_a_standing_starts_kick_is_taken_by_its_contacts(monkeypatch, tmp_path):
     assert len(unsettled.impacts) >= 1
 
 
+def test_a_stance_plans_stopped_replay_is_handed_over_with_replays_to_each_boundary(
+        monkeypatch, tmp_path):
+    """The stance verification's open-loop replay given half the model evaluations it
+    needs stops half-way; `end_state_check` then gets it as a `StoppedReplay`: its states at
+    the boundaries before the stop are the uncapped replay's there, and its `replay_to`
+    from the plan's start runs the first k intervals to the same state (the slicing of
+    the clocks and controls that `departure_check` kicks)."""
+    import dataclasses
+
+    import tfcontact.ocp.stances as stances
+    from tfcontact.scenes.pipeline import kept_path_rows
+    from tfcontact.task import resolve_path_rows, task_stances
+
+    write_strider(tmp_path)
+    task = task_from_dict(tomllib.loads(STRIDER_STEP), tmp_path)
+    problem = build_task(task).problem
+    n, cls = problem.n_intervals, problem.system.cls
+    x0 = np.concatenate([problem.q0, problem.v0])
+    captured = {}
+
+    def capture(plan, tolerance, deviation, defects, reference_end, notes, replay_end,
+                stopped=None):
+        captured.update(plan=plan, deviation=deviation, stopped=stopped)
+        return True, 0.0, float("nan")
+
+    replay = stances.replay_multicontact
+
+    def open_loop_capped(cls_, start, clocks, controls, horizon, *, options=None):
+        if len(clocks) == n + 1 and np.array_equal(start, x0) and "capped" not in captured:
+            needed = replay(cls_, start, clocks, controls, horizon, options=options).n_rhs
+            captured["capped"] = True
+            options = dataclasses.replace(options, max_rhs_evaluations=needed // 2)
+        return replay(cls_, start, clocks, controls, horizon, options=options)
+
+    monkeypatch.setattr(stances, "end_state_check", capture)
+    monkeypatch.setattr(stances, "replay_multicontact", open_loop_capped)
+    stances.resolve_stances(
+        kept_path_rows(problem, resolve_path_rows(task)), task_stances(task),
+        stances.StanceOptions(), verbose=False,
+        guess=(np.linspace(0, problem.horizon, n + 1), np.tile(x0, (n + 1, 1)),
+               np.zeros((n, cls.n_u))))
+    plan, stopped = captured["plan"], captured["stopped"]
+    assert np.isinf(captured["deviation"]) and stopped is not None
+    reached = len(stopped.deviations)
+    assert 1 < reached <= n and plan.clocks[reached - 1] < stopped.stop_time
+    whole = replay(cls, x0, plan.clocks, plan.controls, plan.horizon)
+    assert whole.success
+    for k in range(reached):
+        np.testing.assert_allclose(stopped.states[k], whole.state_at(plan.clocks[k]),
+                                   atol=1e-9)
+        assert stopped.deviations[k] == pytest.approx(
+            np.max(np.abs(stopped.states[k] - plan.states[k])), abs=1e-12)
+    k = reached - 1
+    np.testing.assert_allclose(stopped.replay_to(x0, k), stopped.states[k], atol=1e-7)
+
+
 def test_ties_make_coordinates_follow_others_in_the_discovery_only(tmp_path):
     """`ties`: rows q_a - s q_b = 0 and v_a - s v_b = 0 after the reach rows (s = -1 for
     "-b"), evaluated here on random states; the stance re-solve drops them; a start that
