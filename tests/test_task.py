@@ -1200,6 +1200,21 @@ def test_a_contact_sequence_given_is_checked_before_solving():
                         "stances": [{"closed": [], "start": 0.0, "end": 0.1}]})
 
 
+def resolve_from_the_start(task, problem) -> None:
+    """The stance re-solve of `task`'s stances from the start state at every node."""
+    import tfcontact.ocp.stances as stances
+    from tfcontact.scenes.pipeline import kept_path_rows
+    from tfcontact.task import resolve_path_rows, task_stances
+
+    n, cls = problem.n_intervals, problem.system.cls
+    x0 = np.concatenate([problem.q0, problem.v0])
+    stances.resolve_stances(
+        kept_path_rows(problem, resolve_path_rows(task)), task_stances(task),
+        stances.StanceOptions(), verbose=False,
+        guess=(np.linspace(0, problem.horizon, n + 1), np.tile(x0, (n + 1, 1)),
+               np.zeros((n, cls.n_u))))
+
+
 def test_a_standing_starts_kick_is_taken_by_its_contacts(monkeypatch, tmp_path):
     """The end-state check's kicked replays (`end_state_check`) start from the kicked
     state as the contacts down at the start take it: a kick M^-1 J w that lifts both
@@ -1209,8 +1224,6 @@ def test_a_standing_starts_kick_is_taken_by_its_contacts(monkeypatch, tmp_path):
     import casadi as ca
 
     import tfcontact.ocp.stances as stances
-    from tfcontact.scenes.pipeline import kept_path_rows
-    from tfcontact.task import resolve_path_rows, task_stances
 
     write_strider(tmp_path)
     task = task_from_dict(tomllib.loads(STRIDER_STEP), tmp_path)
@@ -1224,12 +1237,7 @@ def test_a_standing_starts_kick_is_taken_by_its_contacts(monkeypatch, tmp_path):
 
     monkeypatch.setattr(stances, "end_state_check", capture)
     n, cls = problem.n_intervals, problem.system.cls
-    x0 = np.concatenate([problem.q0, problem.v0])
-    stances.resolve_stances(
-        kept_path_rows(problem, resolve_path_rows(task)), task_stances(task),
-        stances.StanceOptions(), verbose=False,
-        guess=(np.linspace(0, problem.horizon, n + 1), np.tile(x0, (n + 1, 1)),
-               np.zeros((n, cls.n_u))))
+    resolve_from_the_start(task, problem)
     x0, replay_end = captured["x0"], captured["replay_end"]
     columns = ca.horzcat(*[ca.horzcat(c.normal, c.tangents) for c in cls.contacts])
     lift = ca.Function("lift", [cls.q], [cls.solve_mass(columns @ ca.DM([1e-3, 0, 1e-3, 0]))])
@@ -1255,8 +1263,6 @@ def test_a_stance_plans_stopped_replay_is_handed_over_with_replays_to_each_bound
     import dataclasses
 
     import tfcontact.ocp.stances as stances
-    from tfcontact.scenes.pipeline import kept_path_rows
-    from tfcontact.task import resolve_path_rows, task_stances
 
     write_strider(tmp_path)
     task = task_from_dict(tomllib.loads(STRIDER_STEP), tmp_path)
@@ -1281,11 +1287,7 @@ def test_a_stance_plans_stopped_replay_is_handed_over_with_replays_to_each_bound
 
     monkeypatch.setattr(stances, "end_state_check", capture)
     monkeypatch.setattr(stances, "replay_multicontact", open_loop_capped)
-    stances.resolve_stances(
-        kept_path_rows(problem, resolve_path_rows(task)), task_stances(task),
-        stances.StanceOptions(), verbose=False,
-        guess=(np.linspace(0, problem.horizon, n + 1), np.tile(x0, (n + 1, 1)),
-               np.zeros((n, cls.n_u))))
+    resolve_from_the_start(task, problem)
     plan, stopped = captured["plan"], captured["stopped"]
     assert np.isinf(captured["deviation"]) and stopped is not None
     reached = len(stopped.deviations)
