@@ -70,7 +70,7 @@ def test_a_departure_larger_than_the_amplified_defects_fails():
     does not reach 0.074, so the departure is not the plan's local errors amplified."""
     passed, amplification, notes = check(stopped_at(0.85, 1e-5), (1e-9,) * N)
     assert not passed and amplification == pytest.approx(np.cosh(RATE * 0.8), rel=1e-9)
-    assert "does not account for the departure" in notes[0]
+    assert "does not account for the deviation" in notes[0]
 
 
 def test_a_departure_needs_every_local_defect_and_a_measured_amplification():

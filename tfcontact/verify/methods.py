@@ -219,19 +219,15 @@ class MultiContactReplay(Replay):
         return sim
 
     def replay_end(self, plan: TimeFreezingPlan, gap_tolerance: float) -> ReplayEnd:
-        """The open-loop replay from another start, each within its own `budget`; one
-        that stops raises `SolveFailed` (its sensitivity is not measured)."""
-        def end(x0: np.ndarray) -> np.ndarray:
-            sim = self.simulate(plan, gap_tolerance, EvaluationBudget(self.budget), x0)
-            if not sim.success:
-                raise SolveFailed(f"kicked multi-contact replay stopped: {sim.message}", sim)
-            return sim.final_state()
-        return end
+        """The open-loop replay from another start to T (`replay_to` to no boundary)."""
+        to = self.replay_to(plan, gap_tolerance)
+        return lambda x0: to(x0, None)
 
     def replay_to(self, plan: TimeFreezingPlan, gap_tolerance: float) -> ReplayTo:
-        """The open-loop replay from another start up to a control-interval boundary,
-        each within its own `budget`; one that stops raises `SolveFailed`."""
-        def to(x0: np.ndarray, boundary: int) -> np.ndarray:
+        """The open-loop replay from another start up to a control-interval boundary
+        (None: to T), each within its own `budget`; one that stops raises `SolveFailed`
+        (its sensitivity is not measured)."""
+        def to(x0: np.ndarray, boundary: int | None) -> np.ndarray:
             sim = self.simulate(plan, gap_tolerance, EvaluationBudget(self.budget), x0,
                                 until=boundary)
             if not sim.success:

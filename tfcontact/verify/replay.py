@@ -230,24 +230,34 @@ def end_state_check(plan: ReplayedPlan, tolerance: float, deviation: float,
             return False, defect_sum, float("nan")
         passed, amplification = departure_check(plan, tol, defects, stopped, notes)
         return passed, defect_sum, amplification
-    kick = SENSITIVITY_KICK * tol
-    sensitivity = open_loop_sensitivity(plan, reference_end, kick, replay_end)
+    passed, amplification = amplified(
+        plan, tol, deviation, defect_sum, reference_end, replay_end, notes,
+        f"open-loop replay {deviation:.2e} from the plan, local defects sum to "
+        f"{defect_sum:.2e}")
+    return passed, defect_sum, amplification
+
+
+def amplified(plan: ReplayedPlan, tolerance: float, deviation: float, defect_sum: float,
+              reference: np.ndarray, replay: ReplayEnd | None, notes: list[str],
+              lead: str) -> tuple[bool, float]:
+    """(passed, amplification): whether the replay's measured sensitivity to a kick of its
+    start velocities (`open_loop_sensitivity` about `reference`, the replay's state where
+    it is compared), times `defect_sum`, reaches `deviation`; the note starts with `lead`."""
+    kick = SENSITIVITY_KICK * tolerance
+    sensitivity = open_loop_sensitivity(plan, reference, kick, replay)
     amplification = sensitivity / kick
     if np.isnan(sensitivity):
-        notes.append(f"open-loop replay {deviation:.2e} from the plan, local defects sum to "
-                     f"{defect_sum:.2e}; a replay with kicked start velocities stopped, so "
-                     "the amplification is not measured and the end-state check fails")
-        return False, defect_sum, amplification
+        notes.append(f"{lead}; a replay with kicked start velocities stopped, so the "
+                     "amplification is not measured and the end-state check fails")
+        return False, amplification
     explained = amplification * defect_sum >= deviation
     notes.append(
-        f"open-loop replay {deviation:.2e} from the plan, local defects sum to "
-        f"{defect_sum:.2e}; start velocities kicked by {kick:.0e} move the replay's end by "
+        f"{lead}; start velocities kicked by {kick:.0e} move the replay there by "
         f"{sensitivity:.2e} (x{amplification:.3g}): "
         + ("the dynamics amplify the plan's local errors (open-loop unstable), the "
            "end-state check passes on the local defects" if explained else
            "that does not account for the deviation, the end-state check fails"))
-    return bool(explained), defect_sum, amplification
-
+    return bool(explained), amplification
 
 def departure_check(plan: ReplayedPlan, tolerance: float, local_defects: np.ndarray,
                     stopped: StoppedReplay, notes: list[str]) -> tuple[bool, float]:
@@ -277,22 +287,9 @@ def departure_check(plan: ReplayedPlan, tolerance: float, local_defects: np.ndar
         return False, float("nan")
     before = local_defects[:k]
     before_sum = float(np.sum(before[~np.isnan(before)]))
-    kick = SENSITIVITY_KICK * tol
-    sensitivity = open_loop_sensitivity(
-        plan, stopped.states[k], kick, lambda x0: stopped.replay_to(x0, k))
-    amplification = sensitivity / kick
-    left = (f"{stop}, after leaving the plan: {stopped.deviations[k]:.2e} from it at "
-            f"t = {plan.clocks[k]:.4g} s (boundary {k}), where the local defects before "
-            f"sum to {before_sum:.2e}")
-    if np.isnan(sensitivity):
-        notes.append(f"{left}; a replay with kicked start velocities stopped before it, so "
-                     "the amplification is not measured and the end-state check fails")
-        return False, amplification
-    explained = amplification * before_sum >= stopped.deviations[k]
-    notes.append(
-        f"{left}; start velocities kicked by {kick:.0e} move the replay's state there by "
-        f"{sensitivity:.2e} (x{amplification:.3g}): "
-        + ("the dynamics amplify the plan's local errors (open-loop unstable), the "
-           "end-state check passes on the local defects" if explained else
-           "that does not account for the departure, the end-state check fails"))
-    return bool(explained), amplification
+    return amplified(
+        plan, tol, float(stopped.deviations[k]), before_sum, stopped.states[k],
+        lambda x0: stopped.replay_to(x0, k), notes,
+        f"{stop}, after leaving the plan: {stopped.deviations[k]:.2e} from it at "
+        f"t = {plan.clocks[k]:.4g} s (boundary {k}), where the local defects before sum "
+        f"to {before_sum:.2e}")
