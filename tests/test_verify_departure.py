@@ -102,3 +102,17 @@ def test_the_kick_is_the_fraction_of_the_tolerance_the_check_promises():
     kick = SENSITIVITY_KICK * TOLERANCE
     assert [k for _, k in starts] == [8, 8]
     np.testing.assert_array_equal([x for x, _ in starts], [[0.0, kick], [0.0, -kick]])
+
+
+def test_a_replay_that_stopped_before_its_first_sample_passed_no_boundary():
+    """A replay with no sample at all (stopped at its start) passed no boundary, also when
+    the plan's clock starts a round-off before 0: the check fails instead of raising."""
+    from tfcontact.verify import stopped_replay
+
+    plan = ReplayedPlan(cls=PLAN.cls, x0=PLAN.x0, clocks=CLOCKS - 1e-28, states=PLAN.states,
+                        controls=PLAN.controls, horizon=1.0)
+    stopped = stopped_replay(SimpleNamespace(t=np.zeros(0)), plan, lambda x0, k: x0)
+    assert stopped.states.shape == (0, 2) and stopped.deviations.size == 0
+    passed, amplification, notes = check(stopped, (1e-5,) * N)
+    assert not passed and np.isnan(amplification)
+    assert "at each of the 0 control-interval boundaries" in notes[0]

@@ -963,7 +963,7 @@ def stopped_replay(sim: MultiContactSimulation, plan: ReplayedPlan,
     its stop (an impact within `LOCAL_DEFECT_IMPACT_WINDOW` of an interval of a boundary
     counts on either side of it); `replay_to` replays from another start."""
     stop = float(sim.t[-1]) if sim.t.size else 0.0
-    reached = np.flatnonzero(plan.clocks < stop)
+    reached = np.flatnonzero(plan.clocks < stop) if sim.t.size else np.zeros(0, dtype=int)
     window = LOCAL_DEFECT_IMPACT_WINDOW * plan.horizon / (len(plan.clocks) - 1)
     # a time-freezing plan's clock may start a round-off before 0
     times = np.maximum(plan.clocks[reached], sim.t[0]) if sim.t.size else []
