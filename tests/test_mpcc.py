@@ -248,6 +248,33 @@ def test_without_refinement_a_failed_step_is_followed_from_its_iterate():
     np.testing.assert_array_equal(solver.calls[5][1], solver.calls[4][2])
 
 
+def test_a_homotopy_stops_at_a_failure_when_its_last_solved_nlp_is_acceptable():
+    """`accept_residual`: the first failed NLP ends the homotopy when the last solved NLP's
+    residual is within it (that iterate reported); a tighter bound goes on as before."""
+    plain = _ShortStepsOnly(corner_mpcc()).solve(
+        homotopy=Homotopy(kappa=0.01, tolerance=1e-6, max_nlps=4))
+    first = plain.history[0].residual  # sigma 1 solved, 1e-2 failed
+    assert first > 1e-6
+    solver = _ShortStepsOnly(corner_mpcc())
+    result = solver.solve(homotopy=Homotopy(kappa=0.01, tolerance=1e-6, max_nlps=4,
+                                            accept_residual=2 * first))
+    assert result.status is MpccStatus.NLP_FAILED
+    assert [s.sigma for s in result.history] == pytest.approx([1, 1e-2])
+    np.testing.assert_array_equal(result.w, solver.calls[0][2][: result.w.size])
+    assert result.residual == pytest.approx(first)
+    tighter = _ShortStepsOnly(corner_mpcc()).solve(
+        homotopy=Homotopy(kappa=0.01, tolerance=1e-6, max_nlps=4, accept_residual=first / 2))
+    assert [s.sigma for s in tighter.history] == pytest.approx([1, 1e-2, 1e-4, 1e-6])
+    # refinements come first: 1e-2 fails, the refined 1e-1 and 1e-2 solve; 1e-4 fails and
+    # the last solved NLP (1e-2) is within the bound
+    refined = _ShortStepsOnly(corner_mpcc()).solve(
+        homotopy=Homotopy(kappa=0.01, tolerance=1e-6, max_nlps=4, max_refinements=1,
+                          accept_residual=2 * first))
+    assert [s.sigma for s in refined.history] == pytest.approx([1, 1e-2, 1e-1, 1e-2, 1e-4])
+    with pytest.raises(InvalidInput, match="`accept_residual` must be None or a number > 0"):
+        Homotopy(accept_residual=0.0)
+
+
 def test_a_verbose_homotopy_says_where_a_long_nlp_is(monkeypatch, capsys):
     """A verbose solve prints a line inside an NLP when `PROGRESS_SECONDS` have passed
     since its last one (here 0: at every iteration after the first), naming the NLP; a

@@ -50,6 +50,12 @@ def test_plan_command_writes_every_file_and_an_honest_status(hopper_plan):
     assert 1 <= len(attempts) <= 3
     assert [a["status"] for a in attempts if a["chosen"]] == [sidecar["status"]]
     assert all(a["status"] != "converged" for a in attempts[:-1])
+    # Each solve keeps its homotopy's NLPs, the chosen one's the same as the history's.
+    for attempt in attempts:
+        assert sum(nlp["iterations"] for nlp in attempt["nlps"]) == attempt["iterations"]
+    chosen = [a for a in attempts if a["chosen"]][0]
+    assert [n["sigma"] for n in chosen["nlps"]] == [h["sigma"] for h in
+                                                   sidecar["solver"]["history"]]
     # The URDF's full collision model (base box, foot sphere) along the plan against the
     # ground: clear, the foot (the declared contact) touching it, the base well above.
     collisions = summary["collisions"]

@@ -542,6 +542,7 @@ def test_a_case_runs_the_plans_later_stages_from_its_perturbed_start(tmp_path, m
     from strider import write_strider
 
     from tfcontact.sweep.run import solve_case
+    from tfcontact.task.presets import default_preset
 
     solved = recorded_stance_solves(monkeypatch)
     target = sweep_target(str(write_strider(tmp_path)))
@@ -562,6 +563,9 @@ def test_a_case_runs_the_plans_later_stages_from_its_perturbed_start(tmp_path, m
     discovery = sum(a["iterations"] for a in record.extra["attempts"])  # every run's
     assert record.iterations == discovery + sum(p.iterations for _, p, _ in solved)
     assert len(record.extra["attempts"]) == runs
+    for attempt in record.extra["attempts"]:  # each discovery's NLPs on record
+        assert attempt["nlps"][0]["sigma"] == default_preset().homotopy.sigma_0
+        assert sum(nlp["iterations"] for nlp in attempt["nlps"]) == attempt["iterations"]
     assert record.success == plan.success
     assert record.status == "converged", record.failure
     assert stages[-1]["status"] == "clear"

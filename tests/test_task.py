@@ -1082,6 +1082,9 @@ def test_a_task_sets_the_stance_resolve_in_its_resolve_table(tmp_path):
             options.discovery_residual, options.lifted_forces,
             options.barrier) == (4, 1.5, 0.1, 1, 1e-6, 0.9, 0.02, True, "adaptive")
     assert task_plan(shipped).stages[-1].options.discovery_residual is None
+    # the discovery stops at a failed NLP once the re-solve would take its last solved one
+    assert task_plan(path).stages[0].build(None).options.homotopy.accept_residual == 0.02
+    assert task_plan(shipped).stages[0].build(None).options.homotopy.accept_residual is None
     assert options.open_slip_gains  # the task's own settings stay
     task = load_task(path)
     with pytest.raises(InvalidInput, match="unknown keys \\['tol'\\]"):

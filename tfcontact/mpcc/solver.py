@@ -78,6 +78,12 @@ class Homotopy:
             kappa that is too long for the warm start is thus cut instead of being taken
             from a failed iterate. 0 (the default) keeps the plain schedule: after a
             failure the next sigma starts from the failed NLP's last iterate.
+        accept_residual: after a failed NLP (and its refinements), stop the homotopy when
+            the last solved NLP's complementarity residual is at most this; the result
+            reports that iterate (nlp_failed). For a caller that takes such an iterate as
+            it is (the stance re-solve's `discovery_residual` reads its stances from it):
+            the NLPs after a failure then only add time unless one recovers. None (the
+            default): go on along the schedule.
     """
 
     sigma_0: float = 1.0
@@ -85,6 +91,7 @@ class Homotopy:
     tolerance: float = 1e-9
     max_nlps: int | None = None
     max_refinements: int = 0
+    accept_residual: float | None = None
 
     def __post_init__(self) -> None:
         if not self.sigma_0 > 0:
@@ -99,6 +106,12 @@ class Homotopy:
                 or self.max_refinements < 0:
             raise InvalidInput(f"`max_refinements` must be a non-negative integer, got "
                                f"{self.max_refinements!r}")
+        if self.accept_residual is not None and not (
+                isinstance(self.accept_residual, int | float)
+                and not isinstance(self.accept_residual, bool)
+                and 0 < self.accept_residual < math.inf):
+            raise InvalidInput(f"`accept_residual` must be None or a number > 0, got "
+                               f"{self.accept_residual!r}")
 
     @property
     def n_max(self) -> int:
@@ -528,7 +541,7 @@ class MpccSolver:
         # reports that iterate rather than the failed one.
         solved_x: np.ndarray | None = None
         solved_lam: Multipliers | None = None
-        solved_sigma = math.inf
+        solved_sigma = solved_residual = math.inf
         target = sigma  # the schedule's sigma_k; `sigma` lies above it after a refinement
         k = refinements = 0
         while k < homotopy.n_max:
@@ -559,6 +572,7 @@ class MpccSolver:
             if solved:
                 status = MpccStatus.NOT_CONVERGED
                 solved_x, solved_lam, solved_sigma = x.copy(), lam, sigma
+                solved_residual = residual
                 if residual <= homotopy.tolerance and not intermediate:
                     status = MpccStatus.CONVERGED
                     break
@@ -574,6 +588,13 @@ class MpccSolver:
                 x, lam = solved_x.copy(), solved_lam
                 sigma = math.sqrt(solved_sigma * sigma)
                 continue
+            if (homotopy.accept_residual is not None
+                    and solved_residual <= homotopy.accept_residual):
+                if verbose:
+                    print(f"  stopped: NLP {k + 1} failed and the last solved one's residual "
+                          f"{solved_residual:.2e} is within `accept_residual` = "
+                          f"{homotopy.accept_residual:g}", flush=True)
+                break
             # A failed relaxed NLP early in the homotopy often recovers with a smaller
             # sigma, warm started from its own last iterate (measured: restarting from
             # the last solved iterate instead made FESD simulation steps fail).

@@ -33,7 +33,7 @@ import numpy as np
 from tfcontact.errors import InvalidInput, SolveFailed, positive_int
 from tfcontact.fesd import Fesd, RadauIIA, Scheme
 from tfcontact.fesd.tableau import as_tableau
-from tfcontact.mpcc import Homotopy, Ipopt, MpccStatus, Relaxation, Scholtes
+from tfcontact.mpcc import Homotopy, HomotopyStep, Ipopt, MpccStatus, Relaxation, Scholtes
 from tfcontact.ocp.goals import Goal, Motion, TaskReport, check_goals
 from tfcontact.ocp.problem import Constraint, OptimalControlProblem
 from tfcontact.ocp.solve import OcpResult, Transcription, solve
@@ -295,6 +295,8 @@ class Attempt:
         iterations: IPOPT iterations over the homotopy.
         solve_time, verify_time: seconds.
         end_state_deviation: the verification's end-state deviation.
+        nlps: the homotopy's NLPs (`HomotopyStep`: sigma, iterations, residual, seconds,
+            IPOPT's status), so that a record shows where a failed solve spent its time.
     """
 
     seed: int | None
@@ -303,6 +305,7 @@ class Attempt:
     solve_time: float
     verify_time: float
     end_state_deviation: float
+    nlps: tuple[HomotopyStep, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -636,7 +639,8 @@ def solve_contact(
         status = _status(result, verification, task)
         attempts.append(Attempt(seed=seed, status=status, iterations=result.total_iterations,
                                 solve_time=result.solve_time, verify_time=verify_time,
-                                end_state_deviation=verification.end_state_deviation))
+                                end_state_deviation=verification.end_state_deviation,
+                                nlps=result.mpcc_result.history))
         solves.append((result, physical, verification, task))
         if status == "converged":
             break

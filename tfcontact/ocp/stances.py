@@ -228,7 +228,9 @@ class StanceOptions:
             not_converged) when its last solved NLP's complementarity residual is at most r
             (its stances read from that iterate). The re-solve enforces the stances'
             complementarity exactly and the reference verifies its plan, so the discovery
-            only proposes the sequence; its status stays in the plan's summary.
+            only proposes the sequence; its status stays in the plan's summary. A task
+            file's `[resolve] discovery_residual` also stops its discovery there
+            (`Homotopy.accept_residual`).
         tol, max_iter: IPOPT's.
         barrier: IPOPT's update of the barrier parameter (`mu_strategy`), "monotone"
             (IPOPT's default) or "adaptive". Measured on the trot's two swings

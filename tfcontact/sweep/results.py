@@ -143,7 +143,7 @@ class CaseResult:
             times={**{k: float(result.timings[k]) for k in ("build", "solve", "verify")},
                    "wall": float(wall_time), "cpu": float(cpu_time)},
             failure=failure, failure_kind=kind, verification=result.verification.summary(),
-            extra={"draws": start.tries, "attempts": [asdict(a) for a in attempts],
+            extra={"draws": start.tries, "attempts": [attempt_record(a) for a in attempts],
                    "options": _options_record(result.options),
                    "task": result.task.to_dict()},
         )
@@ -177,7 +177,7 @@ class CaseResult:
             attempt_statuses=tuple(a.status for a in attempts) + self.attempt_statuses,
             iterations=sum(a.iterations for a in attempts) + self.iterations,
             extra={**self.extra,
-                   "attempts": [asdict(a) for a in attempts] + self.extra["attempts"]})
+                   "attempts": [attempt_record(a) for a in attempts] + self.extra["attempts"]})
 
     def after_stages(self, outcome: Any, stages: list[dict]) -> CaseResult:
         """This discovery's record with the outcome of the plan's later stages (a
@@ -267,6 +267,12 @@ class CaseResult:
                                 f"{record.task}, {dict(record.params)}, start {record.start}, "
                                 f"seed {record.seed})")
         return record
+
+
+def attempt_record(attempt: Any) -> dict[str, Any]:
+    """A discovery solve (`tfcontact.ocp.Attempt`) as JSON reads it back: its NLPs a list
+    of dicts (`asdict` keeps the tuple, which a round trip through a case file does not)."""
+    return {**asdict(attempt), "nlps": [asdict(step) for step in attempt.nlps]}
 
 
 def _options_record(options: Any) -> dict[str, Any]:
