@@ -49,7 +49,8 @@ from tfcontact.sweep import (
      r"plan `hopper` has no task `sprint`; tasks: short, long, bench"),
     ({"plan": "hopper", "seed": -1}, r"`seed` must be a non-negative integer, got -1"),
     ({"plan": "hopper", "grid": {"gravity": [9.8]}},
-     r"unknown grid key `gravity`; grid keys: friction, a_n, relaxation, scheme, n_fe"),
+     r"unknown grid key `gravity`; grid keys: friction, a_n, relaxation, scheme, n_fe, "
+     r"ordering"),
     ({"plan": "hopper", "grid": {"n_fe": [0]}},
      r"`n_fe` values must be whole numbers >= 1, got 0"),
     ({"plan": "hopper", "grid": {"n_fe": ["2.5"]}},
@@ -115,6 +116,12 @@ def test_options_parameters_set_relaxation_and_discretisation():
     assert n_fe.check("2") == n_fe.check(2) == "2" and n_fe.label("2") == "n_fe=2"
     assert options.n_finite_elements == 3
     assert n_fe.apply(options, "2").n_finite_elements == 2
+    # MUMPS's order in IPOPT's options, the plan's other IPOPT options kept
+    ordered = GRID_PARAMETERS["ordering"].apply(options, "metis")
+    assert ordered.nlp.options == {**options.nlp.options, "mumps_pivot_order": 5}
+    assert "mumps_pivot_order" not in options.nlp.options
+    with pytest.raises(InvalidInput, match="`ordering` must be one of auto, amd, pord, metis"):
+        GRID_PARAMETERS["ordering"].check("colamd")
 
 
 def test_hopper_target_plans_from_the_start_it_is_given():

@@ -148,6 +148,34 @@ class FiniteElementsParameter(GridParameter):
         return dataclasses.replace(options, n_finite_elements=int(value))
 
 
+MUMPS_ORDERS = {"auto": 7, "amd": 0, "pord": 4, "metis": 5}
+"""MUMPS's fill-reducing orders by name -> IPOPT's `mumps_pivot_order` (7: MUMPS chooses;
+here it picks PORD, benchmarks/linear_solvers.md)."""
+
+
+@dataclass(frozen=True)
+class OrderingParameter(GridParameter):
+    """The order MUMPS factorises the discovery's KKT matrices in (IPOPT's
+    `mumps_pivot_order`, `MUMPS_ORDERS`): it sets the cost of an iteration and, through
+    round-off, IPOPT's path (benchmarks/legged.md). A later stage's own IPOPT (the stance
+    re-solve's) keeps its order."""
+
+    key: str = "ordering"
+    level: str = "options"
+    help: str = "MUMPS's order in the discovery's NLPs: " + ", ".join(MUMPS_ORDERS)
+
+    def check(self, value: object) -> GridValue:
+        if value not in MUMPS_ORDERS:
+            raise InvalidInput(f"`ordering` must be one of {', '.join(MUMPS_ORDERS)}, "
+                               f"got {value!r}")
+        return str(value)
+
+    def apply(self, options: Any, value: GridValue) -> Any:
+        nlp = options.nlp
+        return dataclasses.replace(options, nlp=dataclasses.replace(nlp, options={
+            **nlp.options, "mumps_pivot_order": MUMPS_ORDERS[str(value)]}))
+
+
 GRID_PARAMETERS: dict[str, GridParameter] = {p.key: p for p in (
     NumberParameter("friction", "Coulomb friction coefficient mu of every contact [-]",
                     minimum=0.0, strict=False),
@@ -156,6 +184,7 @@ GRID_PARAMETERS: dict[str, GridParameter] = {p.key: p for p in (
     RelaxationParameter(),
     SchemeParameter(),
     FiniteElementsParameter(),
+    OrderingParameter(),
 )}
 """The grid's keys, in the order cases and tables list them."""
 
