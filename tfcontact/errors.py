@@ -36,6 +36,16 @@ def nonnegative_number(value: object, name: str) -> float:
     return float(value)
 
 
+def optional_positive(value: object, name: str) -> None:
+    """Nothing if `value` is None or a finite number > 0 (not a bool), else
+    `InvalidInput` naming the argument `name`."""
+    if value is not None and (
+            isinstance(value, bool)
+            or not isinstance(value, int | float | np.integer | np.floating)
+            or not 0 < value < np.inf):
+        raise InvalidInput(f"`{name}` must be None or a number > 0, got {value!r}")
+
+
 def one_of(value: object, choices: Iterable[str], name: str) -> str:
     """`value` if it is one of `choices` (names of settings), else `InvalidInput` naming
     the argument `name` and the choices."""

@@ -21,7 +21,7 @@ import casadi as ca
 import numpy as np
 
 from tfcontact import interrupt
-from tfcontact.errors import InvalidInput, SolveFailed
+from tfcontact.errors import InvalidInput, SolveFailed, optional_positive
 from tfcontact.mpcc.derivatives import repeated_block_derivatives
 from tfcontact.mpcc.problem import Mpcc
 from tfcontact.mpcc.relaxation import Relaxation, Scholtes
@@ -106,12 +106,7 @@ class Homotopy:
                 or self.max_refinements < 0:
             raise InvalidInput(f"`max_refinements` must be a non-negative integer, got "
                                f"{self.max_refinements!r}")
-        if self.accept_residual is not None and not (
-                isinstance(self.accept_residual, int | float)
-                and not isinstance(self.accept_residual, bool)
-                and 0 < self.accept_residual < math.inf):
-            raise InvalidInput(f"`accept_residual` must be None or a number > 0, got "
-                               f"{self.accept_residual!r}")
+        optional_positive(self.accept_residual, "accept_residual")
 
     @property
     def n_max(self) -> int:

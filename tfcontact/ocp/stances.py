@@ -57,6 +57,7 @@ from tfcontact.errors import (
     SolveFailed,
     nonnegative_number,
     one_of,
+    optional_positive,
     positive_int,
 )
 from tfcontact.fesd.tableau import RadauIIA, lagrange_weights
@@ -325,12 +326,7 @@ class StanceOptions:
                 raise InvalidInput(f"`{name}` must be an integer >= 0, got {value!r}")
         if self.blas_threads is not None:
             positive_int(self.blas_threads, "blas_threads")
-        if self.discovery_residual is not None and not (
-                isinstance(self.discovery_residual, int | float)
-                and not isinstance(self.discovery_residual, bool)
-                and 0 < self.discovery_residual < math.inf):
-            raise InvalidInput(f"`discovery_residual` must be None or a number > 0, got "
-                               f"{self.discovery_residual!r}")
+        optional_positive(self.discovery_residual, "discovery_residual")
         if not 0 < self.cone_margin <= 1:
             raise InvalidInput(f"`cone_margin` must lie in (0, 1], got {self.cone_margin}")
         if (isinstance(self.interior_rows, bool) or not isinstance(self.interior_rows, int)

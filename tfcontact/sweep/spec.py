@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from tfcontact.errors import InvalidInput, positive_int
+from tfcontact.errors import InvalidInput, one_of, positive_int
 
 GridValue = float | str
 
@@ -87,10 +87,7 @@ class RelaxationParameter(GridParameter):
     def check(self, value: object) -> GridValue:
         from tfcontact.mpcc import RELAXATIONS
 
-        if value not in RELAXATIONS:
-            raise InvalidInput(f"`relaxation` must be one of {', '.join(RELAXATIONS)}, "
-                               f"got {value!r}")
-        return str(value)
+        return one_of(value, RELAXATIONS, "relaxation")
 
     def apply(self, options: Any, value: GridValue) -> Any:
         from tfcontact.mpcc import RELAXATIONS
@@ -111,9 +108,7 @@ class SchemeParameter(GridParameter):
     help: str = "discretisation: fesd (switch detection) or standard (fixed steps)"
 
     def check(self, value: object) -> GridValue:
-        if value not in SCHEMES:
-            raise InvalidInput(f"`scheme` must be one of {', '.join(SCHEMES)}, got {value!r}")
-        return str(value)
+        return one_of(value, SCHEMES, "scheme")
 
     def apply(self, options: Any, value: GridValue) -> Any:
         from tfcontact.fesd import Fesd, Standard
@@ -165,10 +160,7 @@ class OrderingParameter(GridParameter):
     help: str = "MUMPS's order in the discovery's NLPs: " + ", ".join(MUMPS_ORDERS)
 
     def check(self, value: object) -> GridValue:
-        if value not in MUMPS_ORDERS:
-            raise InvalidInput(f"`ordering` must be one of {', '.join(MUMPS_ORDERS)}, "
-                               f"got {value!r}")
-        return str(value)
+        return one_of(value, MUMPS_ORDERS, "ordering")
 
     def apply(self, options: Any, value: GridValue) -> Any:
         nlp = options.nlp
