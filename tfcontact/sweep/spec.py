@@ -69,6 +69,17 @@ class NumberParameter(GridParameter):
         return value
 
 
+class ChoiceParameter(GridParameter):
+    """A setting chosen by name: its values are `names()`."""
+
+    @abstractmethod
+    def names(self) -> tuple[str, ...]:
+        """The names a value may take."""
+
+    def check(self, value: object) -> GridValue:
+        return one_of(value, self.names(), self.key)
+
+
 # The solver layers (CasADi) are imported where a value is checked or applied, so that
 # the command line's parser (`tfcontact --help`) stays light.
 
@@ -77,17 +88,17 @@ RELAXATION_NAMES = ("scholtes", "l1", "linf")
 
 
 @dataclass(frozen=True)
-class RelaxationParameter(GridParameter):
+class RelaxationParameter(ChoiceParameter):
     """The MPCC relaxation by its short name (`tfcontact.mpcc.RELAXATIONS`)."""
 
     key: str = "relaxation"
     level: str = "options"
     help: str = "MPCC relaxation: " + ", ".join(RELAXATION_NAMES)
 
-    def check(self, value: object) -> GridValue:
+    def names(self) -> tuple[str, ...]:
         from tfcontact.mpcc import RELAXATIONS
 
-        return one_of(value, RELAXATIONS, "relaxation")
+        return tuple(RELAXATIONS)
 
     def apply(self, options: Any, value: GridValue) -> Any:
         from tfcontact.mpcc import RELAXATIONS
@@ -99,7 +110,7 @@ SCHEMES = ("fesd", "standard")
 
 
 @dataclass(frozen=True)
-class SchemeParameter(GridParameter):
+class SchemeParameter(ChoiceParameter):
     """FESD (the plan's own `Fesd` settings, else the defaults) or the standard
     discretisation with fixed equal steps (`tfcontact.fesd.Standard`)."""
 
@@ -107,8 +118,8 @@ class SchemeParameter(GridParameter):
     level: str = "options"
     help: str = "discretisation: fesd (switch detection) or standard (fixed steps)"
 
-    def check(self, value: object) -> GridValue:
-        return one_of(value, SCHEMES, "scheme")
+    def names(self) -> tuple[str, ...]:
+        return SCHEMES
 
     def apply(self, options: Any, value: GridValue) -> Any:
         from tfcontact.fesd import Fesd, Standard
@@ -149,7 +160,7 @@ here it picks PORD, benchmarks/linear_solvers.md)."""
 
 
 @dataclass(frozen=True)
-class OrderingParameter(GridParameter):
+class OrderingParameter(ChoiceParameter):
     """The order MUMPS factorises the discovery's KKT matrices in (IPOPT's
     `mumps_pivot_order`, `MUMPS_ORDERS`): it sets the cost of an iteration and, through
     round-off, IPOPT's path (benchmarks/legged.md). A later stage's own IPOPT (the stance
@@ -159,8 +170,8 @@ class OrderingParameter(GridParameter):
     level: str = "options"
     help: str = "MUMPS's order in the discovery's NLPs: " + ", ".join(MUMPS_ORDERS)
 
-    def check(self, value: object) -> GridValue:
-        return one_of(value, MUMPS_ORDERS, "ordering")
+    def names(self) -> tuple[str, ...]:
+        return tuple(MUMPS_ORDERS)
 
     def apply(self, options: Any, value: GridValue) -> Any:
         nlp = options.nlp
