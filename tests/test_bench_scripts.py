@@ -158,3 +158,38 @@ def test_monoped_bench_tabulates_each_step_and_sets_its_route(load_script, monke
     assert bench.child("plain", "reduced", "out") == 0
     assert [s[1] for s in seen] == [True, False]
     assert seen[0][0] == ["plan", "monoped", "--task", "reduced", "--out", "out", "--force"]
+
+
+def test_curvature_parts_sum_to_ipopts_hessian_of_the_lagrangian(load_script):
+    """`scripts/bench_discovery_curvature.py` on the hopper's vertical hop, its first NLP
+    stopped after 5 iterations: the objective's, the FESD rows' and the Scholtes rows'
+    Hessians, weighted by IPOPT's multipliers, add up to the Hessian of the Lagrangian
+    that `MpccSolver` builds for IPOPT (upper triangle; its relaxed rows G H - sigma carry
+    the Scholtes multipliers); the eigenvalue ranges on the null space of the equality
+    rows obey Weyl's bounds for a sum, and the tracking cost's Hessian is positive
+    semidefinite."""
+    import casadi as ca
+
+    from tfcontact.mpcc import MpccSolver
+
+    bench = load_script("bench_discovery_curvature")
+    found = bench.curvature("hopper-vertical", 5)
+    assert found.iterations == 5
+    mpcc, w, p, sigma = found.point
+    solver = MpccSolver(mpcc)
+    hess_l = solver.nlp_function("nlp_hess_l")
+    x = np.concatenate([w, np.zeros(hess_l.size1_in(0) - w.size)])
+    lam = np.concatenate([found.lam_g, found.lam_c])
+    ipopt = np.asarray(ca.DM(hess_l(x, np.append(p, sigma), 1.0, lam)))
+    total = found.hessians["all"]
+    assert np.abs(total).max() > 0
+    np.testing.assert_allclose(np.triu(total), np.triu(ipopt)[: w.size, : w.size],
+                               atol=1e-8 * np.abs(total).max())
+    parts = [found.ranges[name] for name in found.ranges if name != "all"]
+    low, high, _ = found.ranges["all"]
+    scale = max(abs(low), abs(high))
+    assert low >= sum(r[0] for r in parts) - 1e-9 * scale
+    assert high <= sum(r[1] for r in parts) + 1e-9 * scale
+    assert found.ranges["objective"][0] >= -1e-9 * found.ranges["objective"][1]
+    assert 0.0 <= found.share <= 1.0 + 1e-12
+    assert len(found.row_states) == mpcc.n_g
