@@ -275,6 +275,34 @@ def test_a_homotopy_stops_at_a_failure_when_its_last_solved_nlp_is_acceptable():
         Homotopy(accept_residual=0.0)
 
 
+def test_a_homotopy_stops_at_the_first_solved_nlp_within_stop_residual():
+    """`stop_residual`: the first solved NLP whose residual is within it ends the homotopy,
+    a stepping stone solved to `intermediate_tol` too; the result is that iterate,
+    not_converged (its residual above `tolerance`). On the corner MPCC the Scholtes
+    relaxation's solution at sigma has x y = sigma, so the NLP where the homotopy stops
+    is known."""
+    homotopy = Homotopy(kappa=0.1, tolerance=1e-8)
+    full = solve(corner_mpcc(), homotopy=homotopy, nlp=Ipopt(intermediate_tol=1e-2))
+    assert full.status is MpccStatus.CONVERGED and full.n_nlps > 4
+    stopped = solve(corner_mpcc(), homotopy=dataclasses.replace(homotopy, stop_residual=2e-3),
+                    nlp=Ipopt(intermediate_tol=1e-2), throw=False)
+    assert stopped.status is MpccStatus.NOT_CONVERGED
+    assert [s.sigma for s in stopped.history] == pytest.approx([1, 1e-1, 1e-2, 1e-3])
+    assert stopped.history[-1].intermediate  # a stepping stone, not solved again tightly
+    assert 1e-8 < stopped.residual <= 2e-3
+    assert stopped.residual == pytest.approx(stopped.history[-1].residual)
+    # the iterate is the loosely solved relaxed NLP at sigma 1e-3: x near 1, x y <= sigma
+    x, y = stopped.value("x")[0], stopped.value("y")[0]
+    assert x == pytest.approx(1.0, abs=1e-2) and 0 < x * y <= 1e-3 * (1 + 1e-6)
+    assert stopped.residual == pytest.approx(x * y)
+    # a bound the schedule's last NLP meets anyway changes nothing: converged as before
+    same = solve(corner_mpcc(), homotopy=dataclasses.replace(homotopy, stop_residual=1e-8),
+                 nlp=Ipopt(intermediate_tol=1e-2))
+    assert same.status is MpccStatus.CONVERGED and same.n_nlps == full.n_nlps
+    with pytest.raises(InvalidInput, match="`stop_residual` must be None or a number > 0"):
+        Homotopy(stop_residual=-1.0)
+
+
 def test_a_verbose_homotopy_says_where_a_long_nlp_is(monkeypatch, capsys):
     """A verbose solve prints a line inside an NLP when `PROGRESS_SECONDS` have passed
     since its last one (here 0: at every iteration after the first), naming the NLP; a

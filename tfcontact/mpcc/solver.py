@@ -84,6 +84,12 @@ class Homotopy:
             it is (the stance re-solve's `discovery_residual` reads its stances from it):
             the NLPs after a failure then only add time unless one recovers. None (the
             default): go on along the schedule.
+        stop_residual: stop the homotopy at the first solved NLP whose complementarity
+            residual is at most this, a stepping stone solved to `Ipopt.intermediate_tol`
+            included; the result reports that iterate (not_converged unless it also meets
+            `tolerance`). For a caller that reads only the contact sequence off the iterate
+            (a stance re-solve following the discovery): the NLPs after it would tighten a
+            relaxed plan that is not kept. None (the default): go on to `tolerance`.
     """
 
     sigma_0: float = 1.0
@@ -92,6 +98,7 @@ class Homotopy:
     max_nlps: int | None = None
     max_refinements: int = 0
     accept_residual: float | None = None
+    stop_residual: float | None = None
 
     def __post_init__(self) -> None:
         if not self.sigma_0 > 0:
@@ -107,6 +114,7 @@ class Homotopy:
             raise InvalidInput(f"`max_refinements` must be a non-negative integer, got "
                                f"{self.max_refinements!r}")
         optional_positive(self.accept_residual, "accept_residual")
+        optional_positive(self.stop_residual, "stop_residual")
 
     @property
     def n_max(self) -> int:
@@ -570,6 +578,11 @@ class MpccSolver:
                 solved_residual = residual
                 if residual <= homotopy.tolerance and not intermediate:
                     status = MpccStatus.CONVERGED
+                    break
+                if homotopy.stop_residual is not None and residual <= homotopy.stop_residual:
+                    if verbose:
+                        print(f"  stopped: NLP {k + 1}'s residual {residual:.2e} is within "
+                              f"`stop_residual` = {homotopy.stop_residual:g}", flush=True)
                     break
                 if not refined:  # the schedule's step is done
                     k += 1

@@ -230,7 +230,8 @@ def build_task(task: Task) -> TaskSetup:
 
 def solver_options(task: Task) -> Any:
     """The discovery's `ContactSolverOptions`: the task's preset with the task's own
-    residual, finite elements, barrier and attempts (no robot is loaded). A stance
+    residual, stop residual, finite elements, discretisation, barrier and attempts (no
+    robot is loaded). A stance
     re-solve that follows a discovery stopped short (`[resolve] discovery_residual`) also
     stops it: its homotopy ends at a failed NLP once its last solved one is within that
     residual (`Homotopy.accept_residual`), the iterate the re-solve reads its stances from.
@@ -246,8 +247,15 @@ def solver_options(task: Task) -> Any:
     if accept is not None:
         options = dataclasses.replace(options, homotopy=dataclasses.replace(
             options.homotopy, accept_residual=accept))
+    if task.stop_residual is not None:
+        options = dataclasses.replace(options, homotopy=dataclasses.replace(
+            options.homotopy, stop_residual=task.stop_residual))
     if task.finite_elements is not None:
         options = dataclasses.replace(options, n_finite_elements=task.finite_elements)
+    if task.discretization == "standard":
+        from tfcontact.fesd import Standard
+
+        options = dataclasses.replace(options, method=Standard())
     if task.barrier is not None:
         options = dataclasses.replace(options, nlp=dataclasses.replace(
             options.nlp, options={**options.nlp.options, "mu_strategy": task.barrier}))

@@ -84,7 +84,8 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "guess", "a_n", "gap_scale", "exact_resolve",
         "complementarity_tolerance", "finite_elements", "friction_model", "periodic",
         "period", "period_from", "barrier", "resolve_elements", "resolve",
-        "start_ranges", "attempts", "stances", "ties", "continuation"}
+        "start_ranges", "attempts", "stances", "ties", "continuation", "discretization",
+        "stop_residual"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "clearance", "clearance_speed",
@@ -179,6 +180,8 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         resolve=_table(top.get("resolve", {}), "resolve", set(RESOLVE_SETTINGS)),
         complementarity_tolerance=top.get("complementarity_tolerance"),
         finite_elements=top.get("finite_elements"),
+        discretization=top.get("discretization", "fesd"),
+        stop_residual=top.get("stop_residual"),
         friction_model=top.get("friction_model", "cone"),
         barrier=top.get("barrier"),
         periodic=_listed(top.get("periodic", ()), "periodic"),

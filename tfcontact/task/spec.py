@@ -24,6 +24,9 @@ from tfcontact.timefreezing import InscribedPyramid, SmoothedCone, SpatialFricti
 
 GUESSES = ("start", "reference")
 """The initial guesses a task can ask for (`Task.guess`)."""
+DISCRETIZATIONS = ("fesd", "standard")
+"""The discovery's discretisations a task can ask for (`Task.discretization`): FESD's
+switch detection (`tfcontact.fesd.Fesd`) or fixed equal steps (`tfcontact.fesd.Standard`)."""
 FRICTION_MODELS: dict[str, type[SpatialFriction]] = {"cone": SmoothedCone,
                                                      "pyramid": InscribedPyramid}
 """`Task.friction_model` -> the `Inelastic(friction=...)` strategy it builds."""
@@ -469,6 +472,20 @@ class Task:
             diagonals).
         finite_elements: FESD's finite elements per control interval (default: the
             preset's), the resolution at which lift-offs and touch-downs are located.
+        discretization: the discovery's, "fesd" (default: each finite element's step a
+            variable, switches located inside the elements) or "standard" (fixed equal
+            steps: a switch only at an element's end, first order there). With
+            `exact_resolve` the discovery only proposes the contact sequence, and the
+            stance re-solve places the touchdowns itself; measured on biped-walk
+            (benchmarks/legged.md): the standard discretisation's NLPs took fewer
+            iterations (NLP 1: 168 against 246) and its stepping stones proposed stances
+            the re-solve converged on in 85 iterations.
+        stop_residual: the discovery's homotopy ends at the first solved NLP whose
+            complementarity residual is at most this (`Homotopy.stop_residual`), a
+            stepping stone solved loosely included; needs `exact_resolve` and `[resolve]
+            discovery_residual` at least this, so that the stance re-solve follows that
+            iterate's stances. None (default): the homotopy goes on to
+            `complementarity_tolerance`.
         barrier: IPOPT's update of the barrier parameter in every NLP, "adaptive" or
             "monotone" (`mu_strategy`; default: the preset's). Which one converges
             depends on the problem, measured: the two-foot bolt walk's last NLP reached
@@ -547,6 +564,8 @@ class Task:
     period_from: float = 0.0
     complementarity_tolerance: float | None = None
     finite_elements: int | None = None
+    discretization: str = "fesd"
+    stop_residual: float | None = None
     friction_model: str = "cone"
     barrier: str | None = None
     exact_resolve: bool = False
@@ -633,6 +652,7 @@ class Task:
                                positive_int(self.finite_elements, "finite_elements"))
         if self.barrier is not None:
             one_of(self.barrier, BARRIERS, "barrier")
+        one_of(self.discretization, DISCRETIZATIONS, "discretization")
         if not isinstance(self.exact_resolve, bool):
             raise InvalidInput(f"`exact_resolve` must be true or false, got "
                                f"{self.exact_resolve!r}")
@@ -662,10 +682,23 @@ class Task:
                     "`exact_resolve = true` and several contacts, or along given "
                     "`stances`; remove it or set those")
         object.__setattr__(self, "resolve", _frozen(dict(self.resolve)))
+        self._check_stop_residual()
         if self.attempts is not None:
             object.__setattr__(self, "attempts", positive_int(self.attempts, "attempts"))
         if not isinstance(self.description, str):
             raise InvalidInput("`description` must be a string")
+
+    def _check_stop_residual(self) -> None:
+        if self.stop_residual is None:
+            return
+        stop = finite(self.stop_residual, "stop_residual", low=0.0, strict=True)
+        accepted = self.resolve.get("discovery_residual")
+        if not self.exact_resolve or accepted is None or accepted < stop:
+            raise InvalidInput(
+                f"`stop_residual` = {stop:g} ends the discovery short of its tolerance for "
+                "the stance re-solve to follow: set `exact_resolve = true` and `[resolve] "
+                f"discovery_residual` to at least {stop:g}")
+        object.__setattr__(self, "stop_residual", stop)
 
     def _check_continuation(self, frames: list[str]) -> None:
         before = self.continuation
