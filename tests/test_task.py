@@ -324,11 +324,13 @@ def test_the_biped_walk_task_builds_bolt_with_two_feet_in_the_plane():
     heights, spheres of the foot meshes' 16 mm), a no-slip row per foot, the monotone
     barrier over the fast preset, the gap scale of its elements (60), two lift-offs
     asked of each foot, joint bounds inside the URDF's +-10 rad, each foot's reach, the
-    gait's period of 0.4 s from 0.2 s (every state but x), the exact re-solve along its
-    stances and its sweep's start ranges (x only). Its solve (about 6 minutes:
-    benchmarks/legged.md) is not run here."""
+    gait's period of 0.4 s from 0.2 s (every state but x), the discovery on fixed steps
+    stopped at residual 0.02, the exact re-solve along its stances and its sweep's start
+    ranges (x only); `biped-walk-fesd` the same walk discovered with FESD to 1e-3. Its
+    solve (about 35 s: benchmarks/legged.md) is not run here."""
     import pinocchio as pin
 
+    from tfcontact.fesd import Fesd, Standard
     from tfcontact.ocp.goals import LiftOffs
 
     setup = build_task(load_task(shipped_tasks()["biped-walk"]))
@@ -354,6 +356,11 @@ def test_the_biped_walk_task_builds_bolt_with_two_feet_in_the_plane():
     knees = [cls.q_names.index(name) for name in ("FL_KFE", "FR_KFE")]
     np.testing.assert_allclose(setup.problem.q_upper[knees], -0.3)
     assert load_task(shipped_tasks()["biped-walk"]).exact_resolve
+    assert isinstance(setup.options.method, Standard)
+    assert setup.options.homotopy.stop_residual == 0.02
+    fesd = build_task(load_task(shipped_tasks()["biped-walk-fesd"]))
+    assert isinstance(fesd.options.method, Fesd) and fesd.options.homotopy.stop_residual is None
+    assert fesd.problem.n_intervals == setup.problem.n_intervals
     # its sweep moves the base along x only: both feet stay on the ground (the base's
     # default ranges lift it into the air, where the discovery failed: benchmarks/sweeps)
     from tfcontact.sweep.targets import sweep_target
@@ -1101,6 +1108,39 @@ def test_a_task_sets_the_stance_resolve_in_its_resolve_table(tmp_path):
         dataclasses.replace(task, exact_resolve=False)
     with pytest.raises(InvalidInput, match="`resolve` must be a table"):
         dataclasses.replace(task, resolve=[("cone_facets", 4)])
+
+
+def test_a_task_chooses_its_discoverys_discretization_and_where_it_stops(tmp_path):
+    """`discretization = "standard"`: the discovery's `ContactSolverOptions.method` is
+    `Standard` (fixed steps); `stop_residual`: its homotopy's `stop_residual`, allowed only
+    where the stance re-solve follows such an iterate (`exact_resolve` and `[resolve]
+    discovery_residual` at least as large); unknown discretisations are refused."""
+    import dataclasses
+
+    from tfcontact.fesd import Fesd, Standard
+    from tfcontact.scenes.plans import task_plan
+
+    shipped = shipped_tasks()["biped-walk-short"]
+    plain = task_plan(shipped).stages[0].build(None).options
+    assert isinstance(plain.method, Fesd) and plain.homotopy.stop_residual is None
+    path = tmp_path / "walk.toml"
+    path.write_text(shipped.read_text().replace(
+        "exact_resolve = true", "exact_resolve = true\ndiscretization = \"standard\"\n"
+        "stop_residual = 0.02") + "\n[resolve]\ndiscovery_residual = 0.05\n")
+    task = load_task(path)
+    assert (task.discretization, task.stop_residual) == ("standard", 0.02)
+    options = task_plan(path).stages[0].build(None).options
+    assert isinstance(options.method, Standard)
+    assert options.homotopy.stop_residual == 0.02
+    assert options.homotopy.accept_residual == 0.05
+    with pytest.raises(InvalidInput, match="`discretization` must be one of"):
+        dataclasses.replace(task, discretization="rk4")
+    with pytest.raises(InvalidInput, match="discovery_residual` to at least 0.1"):
+        dataclasses.replace(task, stop_residual=0.1)
+    with pytest.raises(InvalidInput, match="set `exact_resolve = true`"):
+        dataclasses.replace(task, resolve={}, stop_residual=0.02)
+    with pytest.raises(InvalidInput, match="`stop_residual` must be"):
+        dataclasses.replace(task, stop_residual=-1.0)
 
 
 def test_a_discovery_before_a_stance_resolve_is_checked_by_the_multicontact_reference():
