@@ -37,7 +37,7 @@ class Curvature:
     equality rows, and how many are below -1e-6), the multipliers `lam_g` (the FESD
     rows) and `lam_c` (the Scholtes rows), each FESD row's state components (`row_states`),
     the equality rows' `singular_values` (descending), the `share` of their multipliers'
-    norm along the 20 smallest, and the `point`: the MPCC, w, p and sigma."""
+    norm along the 20 smallest, and the `point`: the MPCC, its iterate w and parameters p."""
 
     task: str
     iterations: int
@@ -50,7 +50,7 @@ class Curvature:
     row_states: tuple[str, ...]
     singular_values: np.ndarray
     share: float
-    point: tuple[Any, np.ndarray, np.ndarray, float]
+    point: tuple[Any, np.ndarray, np.ndarray]
 
 
 def reduced_range(hessian: np.ndarray, null: np.ndarray) -> tuple[float, float, int]:
@@ -108,7 +108,7 @@ def curvature(task_name: str, iterations: int) -> Curvature:
         objective=nlp.objective, hessians=hessians,
         ranges={name: reduced_range(h, null) for name, h in hessians.items()},
         lam_g=lam_g, lam_c=lam_c, row_states=row_states, singular_values=singular,
-        share=share, point=(mpcc, w, p, nlp.history[0].sigma))
+        share=share, point=(mpcc, w, p))
 
 
 def main() -> None:
