@@ -115,6 +115,9 @@ def _in_casadi_glue(frame: FrameType | None) -> bool:
     return frame is not None and frame.f_code.co_filename.endswith(_CASADI_MODULE)
 
 
+_OBJECTIVE = ca.nlpsol_out().index("f")
+
+
 class StopOnSignal(ca.Callback):
     """IPOPT's `iteration_callback`: stop the NLP once a `guard()` recorded a signal.
 
@@ -127,6 +130,8 @@ class StopOnSignal(ca.Callback):
         self.construct("stop_on_signal", {})
         self.on_iteration: Callable[[], None] | None = None
         """Called at each iteration (e.g. a progress line of a verbose solve)."""
+        self.objective = float("nan")
+        """The objective at the iteration being reported (read by `on_iteration`)."""
 
     def get_n_in(self) -> int:
         return ca.nlpsol_n_out()
@@ -141,10 +146,11 @@ class StopOnSignal(ca.Callback):
         return "stop"
 
     def get_sparsity_in(self, i: int) -> ca.Sparsity:
-        # Any shape: the callback reads nothing of the iterate.
-        return ca.Sparsity.dense(0, 0)
+        # Any shape: the callback reads nothing of the iterate but its objective.
+        return ca.Sparsity.dense(1, 1) if i == _OBJECTIVE else ca.Sparsity.dense(0, 0)
 
     def eval(self, arg: list) -> list:
+        self.objective = float(arg[_OBJECTIVE])
         if self.on_iteration is not None:
             self.on_iteration()
         return [1 if _pending else 0]

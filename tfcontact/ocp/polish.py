@@ -57,6 +57,7 @@ from tfcontact.ocp.nodes import (
     collocation_function,
     collocation_residuals,
     interpolate,
+    ipopt_solver,
     report_progress,
     shooting_function,
     solve_timed,
@@ -814,12 +815,10 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     opti.minimize(cost + terminal_cost(y_end))
     derivatives = ({} if repeated is None
                    else repeated.derivative_options(options.threads))
-    opti.solver("ipopt", {"print_time": False, "record_time": True, "expand": options.expand,
-                          **derivatives},
-                {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0,
-                 "sb": "yes"})
-    if verbose:
-        report_progress(opti)
+    stop = ipopt_solver(opti, {"print_time": False, "record_time": True,
+                               "expand": options.expand, **derivatives},
+                        {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0,
+                         "sb": "yes"})
     history = []
     status, iterations = "", 0
     values = None
@@ -827,6 +826,8 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     evaluation_time = ipopt_time = 0.0
     for c in options.cone_margins:
         opti.set_value(margin, c)
+        if verbose:
+            report_progress(stop)
         sol, building, in_ipopt, evaluations = solve_timed(opti, options.blas_threads)
         build_time += building if not history else 0.0  # the first solve builds the solver
         ipopt_time += in_ipopt

@@ -74,6 +74,7 @@ from tfcontact.ocp.nodes import (
     collocation_residuals,
     collocation_rows,
     interpolate,
+    ipopt_solver,
     report_progress,
     shooting_function,
     solve_timed,
@@ -1206,14 +1207,14 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
               **({} if repeated is None else repeated.derivative_options(options.threads))}
     ipopt = {"tol": options.tol, "max_iter": options.max_iter, "mu_strategy": options.barrier,
              "print_level": 0, "sb": "yes"}
-    if verbose:
-        report_progress(opti)
     iterations = 0
     build_time = time.perf_counter() - start
     evaluation_time = ipopt_time = 0.0
     restarts_left = {CAPPED: options.capped_restarts, STEP_ERROR: options.step_error_restarts}
     while True:
-        opti.solver("ipopt", plugin, ipopt)
+        stop = ipopt_solver(opti, plugin, ipopt)
+        if verbose:
+            report_progress(stop)
         sol, building, in_ipopt, evaluations = solve_timed(opti, options.blas_threads)
         build_time += building  # each solve builds its solver
         ipopt_time += in_ipopt
