@@ -1082,12 +1082,14 @@ def test_a_task_sets_the_stance_resolve_in_its_resolve_table(tmp_path):
     path.write_text(shipped.read_text() + "\n[resolve]\ncone_facets = 4\n"
                     "min_normal_force = 1.5\ntouchdown_speed = 0.1\ninterior_rows = 1\n"
                     "contact_tolerance = 1e-6\ncone_margin = 0.9\ndiscovery_residual = 0.02\n"
-                    "lifted_forces = true\nbarrier = \"adaptive\"\n")
+                    "lifted_forces = true\nbarrier = \"adaptive\"\nflight_gap = 0.004\n"
+                    "contact_gap = 0.002\n")
     options = task_plan(path).stages[-1].options
     assert (options.cone_facets, options.min_normal_force, options.touchdown_speed,
             options.interior_rows, options.contact_tolerance, options.cone_margin,
-            options.discovery_residual, options.lifted_forces,
-            options.barrier) == (4, 1.5, 0.1, 1, 1e-6, 0.9, 0.02, True, "adaptive")
+            options.discovery_residual, options.lifted_forces, options.barrier,
+            options.flight_gap, options.contact_gap
+            ) == (4, 1.5, 0.1, 1, 1e-6, 0.9, 0.02, True, "adaptive", 0.004, 0.002)
     assert task_plan(shipped).stages[-1].options.discovery_residual is None
     # the discovery stops at a failed NLP once the re-solve would take its last solved one
     assert task_plan(path).stages[0].build(None).options.homotopy.accept_residual == 0.02
@@ -1104,6 +1106,8 @@ def test_a_task_sets_the_stance_resolve_in_its_resolve_table(tmp_path):
         dataclasses.replace(task, resolve={"lifted_forces": "yes"})
     with pytest.raises(InvalidInput, match="`barrier` must be one of"):
         dataclasses.replace(task, resolve={"barrier": "fast"})
+    with pytest.raises(InvalidInput, match="need 0 < contact_gap < flight_gap"):
+        dataclasses.replace(task, resolve={"contact_gap": 0.006})
     with pytest.raises(InvalidInput, match="`resolve` sets the stance re-solve"):
         dataclasses.replace(task, exact_resolve=False)
     with pytest.raises(InvalidInput, match="`resolve` must be a table"):

@@ -55,7 +55,7 @@ def _names(mapping: Mapping[str, Any], where: str) -> dict[str, Any]:
 RESOLVE_SETTINGS = frozenset({"cone_facets", "min_normal_force", "touchdown_speed",
                               "interior_rows", "contact_tolerance", "cone_margin",
                               "swing_middle", "discovery_residual", "lifted_forces",
-                              "barrier"})
+                              "barrier", "flight_gap", "contact_gap"})
 """The `tfcontact.ocp.StanceOptions` fields a task's `[resolve]` table may set."""
 
 
@@ -510,7 +510,9 @@ class Task:
             of `RESOLVE_SETTINGS`, each the `tfcontact.ocp.StanceOptions` field of its
             name: `cone_facets`, `min_normal_force`, `touchdown_speed`, `interior_rows`,
             `contact_tolerance`, `cone_margin`, `swing_middle`, `discovery_residual`,
-            `lifted_forces`, `barrier`.
+            `lifted_forces`, `barrier`, and `flight_gap`, `contact_gap` (the gaps [m]
+            at which the discovery's relaxed plan opens and closes a contact when its
+            stances are read).
             What a plan of four 3-D feet needed is in benchmarks/legged.md.
         attempts: solves of the plan at most (default: the preset's): a plan that fails
             is solved again from its guess perturbed (`ContactSolverOptions.attempts`).
