@@ -136,7 +136,7 @@ def test_a_signal_stops_an_opti_solve_within_an_iteration(sigint_handled):
     replaced the iteration callback that stops IPOPT: a SIGINT was recorded and IPOPT ran
     on (measured: a 5000-iteration solve to its end, 131 s; a stance re-solve of solo12
     for 30 minutes after SIGTERM). Now it stops within an iteration."""
-    opti, stop = _slow_opti()
+    opti, stop = _slow_opti()  # `stop` kept alive: CasADi borrows it
     timer = threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT))
     timer.start()
     start = time.monotonic()

@@ -152,7 +152,7 @@ def report_progress(stop: interrupt.StopOnSignal) -> None:
     took (from now to IPOPT's first iteration), then the objective and the elapsed time as
     `IterationProgress` says (every 250 iterations or each minute)."""
     set_up = time.perf_counter()
-    progress = IterationProgress()
+    progress = IterationProgress()  # made again at IPOPT's first iteration
     count = 0
 
     def report() -> None:
@@ -160,7 +160,7 @@ def report_progress(stop: interrupt.StopOnSignal) -> None:
         if count == 0:
             print(f"    IPOPT started ({time.perf_counter() - set_up:.0f} s setting up its "
                   "solver)", flush=True)
-            progress = IterationProgress()  # the lines count from the solve's start
+            progress = IterationProgress()  # the lines' seconds count from here
         elif progress.due(count):
             print(f"    iteration {count}: objective {stop.objective:.6g}, "
                   f"{progress.elapsed:.0f} s", flush=True)

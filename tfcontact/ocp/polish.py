@@ -815,6 +815,7 @@ def polish_contact(problem: ContactProblem, phases: tuple[Phase, ...],
     opti.minimize(cost + terminal_cost(y_end))
     derivatives = ({} if repeated is None
                    else repeated.derivative_options(options.threads))
+    # `stop` lives as long as the solver: CasADi holds only a borrowed reference to it
     stop = ipopt_solver(opti, {"print_time": False, "record_time": True,
                                "expand": options.expand, **derivatives},
                         {"tol": options.tol, "max_iter": options.max_iter, "print_level": 0,

@@ -1212,7 +1212,7 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     evaluation_time = ipopt_time = 0.0
     restarts_left = {CAPPED: options.capped_restarts, STEP_ERROR: options.step_error_restarts}
     while True:
-        stop = ipopt_solver(opti, plugin, ipopt)
+        stop = ipopt_solver(opti, plugin, ipopt)  # kept: CasADi borrows it
         if verbose:
             report_progress(stop)
         sol, building, in_ipopt, evaluations = solve_timed(opti, options.blas_threads)
