@@ -180,7 +180,7 @@ def test_knee_through_a_step_fails_with_body_and_time(leg):
     # the knee also gets the missing-contact hint; the foot (a declared contact) does not
     assert report.hints == ("body 'knee_0' touches obstacle 'step' at t = 0.410 s (distance "
                             "-4.0 mm): declare a contact on it (ContactSpec on frame 'knee') "
-                            "or raise it",)
+                            "or keep it above the terrain (a task's [[bodies]])",)
     assert report.skipped_pairs == (("foot_0", "knee_0", "same joint"),)
     assert "4.0 mm through obstacle 'step'" in report.summary()
 
@@ -202,7 +202,7 @@ def test_undeclared_body_on_the_ground_names_the_missing_contact(leg):
     assert report.passed and report.status is CollisionStatus.UNDECLARED_CONTACT
     assert report.hints == ("body 'foot_0' touches obstacle 'ground' at t = 0.000 s (distance "
                             "+0.5 mm): declare a contact on it (ContactSpec on frame 'foot') "
-                            "or raise it",)
+                            "or keep it above the terrain (a task's [[bodies]])",)
     # ignoring the foot leaves the knee, 0.22 - 0.03 m up
     report = check_collisions(robot.model, robot.collision_model, [0.0, 0.1], q,
                               [halfspace_obstacle("ground")],
@@ -253,7 +253,8 @@ def test_a_body_holding_its_contacts_sphere_touches_there_only(tmp_path):
     assert not upside_down.body("stick_0").contact
     assert upside_down.hints == (
         "body 'stick_0' touches obstacle 'ground' at t = 0.100 s (distance +0.0 mm): declare "
-        "a contact on it (ContactSpec on frame 'stick') or raise it",)
+        "a contact on it (ContactSpec on frame 'stick') or keep it above the terrain "
+        "(a task's [[bodies]])",)
 
 
 # ----------------------------------------------------------------------------- self-collision

@@ -108,6 +108,14 @@ def _edited(task_file: Path, old: str, new: str) -> Path:
      r"`goals.lift_offs.toe` must be a positive integer"),
     ("[goals]", "[goal]", r"`task` has unknown keys \['goal'\]"),
     ("horizon = 1.0\n", "", r"`task` lacks \['horizon'\]"),
+    ("[start]", '[[bodies]]\nframe = "body"\nradius = 0\n[start]',
+     r"`bodies\[body\].radius` must be finite > 0"),
+    ("[start]", '[[bodies]]\nframe = "body"\nraduis = 0.1\n[start]',
+     r"`bodies\[0\]` has unknown keys \['raduis'\]"),
+    ("[start]", '[[bodies]]\nframe = "toe"\nradius = 0.1\n[start]',
+     r"`bodies` names a frame twice or a contact's frame: \['toe'\]"),
+    ("n_intervals = 20\n", 'n_intervals = 20\nbodies = { frame = "body" }\n',
+     r"`bodies` must be an array of tables"),
     ("control = 0.001", "control = 'cheap'", r"`costs.control` must be a number"),
     ("no_slip = true", "no_slip = true\nreach = { w = [-0.1, 0.1] }",
      r"`contacts\[toe\].reach` names axes \['w'\]; its axes: x, y, z"),
@@ -146,6 +154,10 @@ def test_task_file_errors_for_missing_and_broken_files(tmp_path):
     ("friction = 0.5", "friction = 0.0", r"`contacts\[toe\].no_slip` needs friction > 0"),
     ("friction = 0.5\nno_slip = true", "friction = 0.0\nclearance = 0.05",
      r"`contacts\[toe\].clearance` needs friction > 0"),
+    ("[start]", '[[bodies]]\nframe = "hip"\nradius = 0.05\n[start]',
+     r"`bodies\[hip\].frame` is not a frame of the model; its frames: .*body"),
+    ("[start]", '[[bodies]]\nframe = "body"\nradius = 0.4\n[start]',
+     r"the start puts `bodies\[body\]` 0.08 m into the terrain"),
 ])
 def test_build_errors_name_the_field(task_file, old, new, message):
     with pytest.raises(InvalidInput, match=message):
@@ -411,6 +423,52 @@ def test_a_contacts_reach_bounds_it_in_the_base_frame():
     # the base's frame, not the world's: at this pitch the two differ by centimetres
     world = data.oMf[model.getFrameId("FL_FOOT")].translation - base.translation
     assert abs(world[0] - offsets[0][0]) > 0.01
+
+
+def test_bodies_are_kept_above_the_terrain_in_the_discovery_and_the_resolve():
+    """`bodies`: a row g(q) >= 0 per body after the contacts' reach rows, kept by the
+    stance re-solve; on flat ground g is the frame's height (Pinocchio's placement at
+    random configurations of solo12's floating base) less the radius. On a step the
+    gap of a point over the box's top is its height above the top."""
+    import dataclasses
+
+    import pinocchio as pin
+
+    from tfcontact.task import BodyEntry
+
+    task = load_task(shipped_tasks()["quadruped-jump"])
+    knees = ("FL_KFE", "HR_KFE")
+    task = dataclasses.replace(task, bodies=tuple(BodyEntry(k, 0.025) for k in knees))
+    setup = build_task(task)
+    path, cls = setup.problem.path, setup.problem.system.cls
+    steering = sum(int(c.no_slip) + int(c.clearance is not None) for c in task.contacts)
+    reach = sum(len(c.reach) for c in task.contacts)
+    rows = resolve_path_rows(task)
+    assert rows[-2:] == (steering + reach, steering + reach + 1)
+    kept = path.rows(rows)
+    np.testing.assert_array_equal(kept.lower[-2:], [0.0, 0.0])
+    np.testing.assert_array_equal(kept.upper[-2:], [np.inf, np.inf])
+    gap = ca.Function("gap", [cls.q], [kept.expression[-2:]])
+    model, data = setup.robot.model, setup.robot.data
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        q = setup.problem.q0 + rng.uniform(-0.5, 0.5, cls.n_q)
+        pin.framesForwardKinematics(model, data, q)
+        expected = [data.oMf[model.getFrameId(k)].translation[2] - 0.025 for k in knees]
+        np.testing.assert_allclose(np.asarray(gap(q)).ravel(), expected, atol=1e-12)
+
+    step = load_task(shipped_tasks()["biped-step"])
+    step = dataclasses.replace(step, bodies=(BodyEntry("base_link", 0.05),))
+    setup = build_task(step)
+    box = next(p for p in step.terrain.terrain.primitives if type(p).__name__ == "Box")
+    gap = ca.Function("gap", [setup.problem.system.cls.q],
+                      [setup.problem.path.expression[resolve_path_rows(step)[-1]]])
+    q = np.array(setup.problem.q0, dtype=float)
+    q[0] = box.x[0] + 0.2  # the base over the step's top, well inside its rounding
+    model, data = setup.robot.model, setup.robot.data
+    pin.framesForwardKinematics(model, data, q)
+    height = data.oMf[model.getFrameId("base_link")].translation[2]
+    assert float(gap(q)) == pytest.approx(height - box.top - 0.05, abs=1e-9)
 
 
 def test_a_contacts_clearance_lifts_it_as_it_moves():

@@ -25,6 +25,7 @@ from tfcontact.task.files import (
 from tfcontact.task.presets import SOLVER_PRESETS
 from tfcontact.task.solve import plan
 from tfcontact.task.spec import (
+    BodyEntry,
     ContactEntry,
     Continuation,
     Costs,
@@ -40,6 +41,7 @@ from tfcontact.task.spec import (
 __all__ = [
     "SHIPPED",
     "SOLVER_PRESETS",
+    "BodyEntry",
     "ContactEntry",
     "Continuation",
     "Costs",

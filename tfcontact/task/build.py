@@ -1,5 +1,6 @@
 """From a `Task` to what `solve_contact` solves: robot, CLS, time-freezing system,
-`ContactProblem` (tracking costs, bounds, no-slip path constraints, goals) and options.
+`ContactProblem` (tracking costs, bounds, path constraints: no-slip, reach, bodies kept
+off the terrain, ties; goals) and options.
 
 A terrain of primitives is modelled where the contacts can be: `task_region` gives the
 box of the contact centres (the task's own `[terrain] region`, or the base's range
@@ -173,7 +174,16 @@ def build_task(task: Task) -> TaskSetup:
             rows.append(offset["xyz".index(axis)])
             row_lower.append(low)
             row_upper.append(high)
-    # ties after the reach rows: they steer the discovery only (`resolve_path_rows`)
+    # the bodies kept off the terrain, also kept by the stance re-solve
+    for body, gap in zip(task.bodies, _body_gaps(task, robot, ground), strict=True):
+        start_gap = float(ca.Function("g", [cls.q], [gap])(x0[:len(names)]))
+        if start_gap < -1e-9:
+            raise InvalidInput(f"the start puts `bodies[{body.frame}]` {-start_gap:.4g} m into "
+                               "the terrain; raise the base in `start` or shrink its radius")
+        rows.append(gap)
+        row_lower.append(0.0)
+        row_upper.append(np.inf)
+    # ties after the reach and body rows: they steer the discovery only (`resolve_path_rows`)
     for name, other in task.ties.items():
         sign = -1.0 if other.startswith("-") else 1.0
         i, j = names.index(name), names.index(other.removeprefix("-"))
@@ -266,10 +276,30 @@ def solver_options(task: Task) -> Any:
 
 def resolve_path_rows(task: Task) -> tuple[int, ...]:
     """The rows of `build_task(task).problem.path` that a stance re-solve keeps
-    (`StanceResolve.path_rows`): the contacts' reach rows, a leg's range of motion. The
-    rows before them (no-slip, clearance) steer the discovery only."""
+    (`StanceResolve.path_rows`): the contacts' reach rows, a leg's range of motion, and
+    the rows keeping `bodies` off the terrain. The rows before them (no-slip, clearance)
+    and after them (ties) steer the discovery only."""
     steering = sum(int(c.no_slip) + int(c.clearance is not None) for c in task.contacts)
-    return tuple(range(steering, steering + sum(len(c.reach) for c in task.contacts)))
+    kept = sum(len(c.reach) for c in task.contacts) + len(task.bodies)
+    return tuple(range(steering, steering + kept))
+
+
+def _body_gaps(task: Task, robot: Any, ground: Any) -> list[Any]:
+    """g(q) [m] of each of `task.bodies` against the terrain the contacts see (`ground`: a
+    `Ground` half-space or a `Terrain`), in the robot twin's q."""
+    from tfcontact.robot import Ground
+
+    gaps = []
+    for body in task.bodies:
+        if body.frame not in robot.twin.frame_names:
+            raise InvalidInput(f"`bodies[{body.frame}].frame` is not a frame of the model; "
+                               f"its frames: {', '.join(robot.twin.frame_names)}")
+        point = robot.twin.frame_position(body.frame)
+        if isinstance(ground, Ground):  # the half-space's gap, as the contacts'
+            gaps.append(ca.dot(ca.DM(ground.normal), point) - ground.height - body.radius)
+        else:
+            gaps.append(ground.gap(point, body.radius))
+    return gaps
 
 
 def task_stances(task: Task) -> tuple[Stance, ...]:

@@ -32,6 +32,12 @@ contacts down from its start until the next one's,
     closed = ["right_foot"]       # the left foot lifts at this control jump
     start = 0.2
 
+Points of the robot that must not touch the terrain (`Task.bodies`) are kept above it:
+
+    [[bodies]]
+    frame = "FL_KFE"              # a knee
+    radius = 0.025
+
 The terrain is one plane (`[terrain]` with `height` and `normal`, default flat at 0) or
 primitives (`tfcontact.robot.Terrain`), each with the fields of its robot-layer class
 (ranges as [lo, hi], `inf` for an open end, y omitted in a planar scene):
@@ -64,6 +70,7 @@ from tfcontact.errors import IncompatibleOptions, InvalidInput
 from tfcontact.robot.terrain import Box, Hole, Plane, Region, Terrain
 from tfcontact.task.spec import (
     RESOLVE_SETTINGS,
+    BodyEntry,
     ContactEntry,
     Continuation,
     Costs,
@@ -85,7 +92,7 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "complementarity_tolerance", "finite_elements", "friction_model", "periodic",
         "period", "period_from", "barrier", "resolve_elements", "resolve",
         "start_ranges", "attempts", "stances", "ties", "continuation", "discretization",
-        "stop_residual"}
+        "stop_residual", "bodies"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "clearance", "clearance_speed",
@@ -151,6 +158,10 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
                                "coordinates, e.g. t = 0.5, z = 0.8")
         parsed_waypoints.append(Waypoint(w["t"], {n: v for n, v in w.items() if n != "t"}))
     actuated = top.get("actuated")
+    bodies = top.get("bodies", [])
+    if not isinstance(bodies, list):
+        raise InvalidInput("`bodies` must be an array of tables: [[bodies]] with frame and "
+                           "radius")
     stances = top.get("stances", [])
     if not isinstance(stances, list):
         raise InvalidInput("`stances` must be an array of tables: [[stances]] with closed "
@@ -188,6 +199,9 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         period=top.get("period"), period_from=top.get("period_from", 0.0),
         ties=top.get("ties", {}),
         continuation=_continuation(top.get("continuation"), folder),
+        bodies=tuple(BodyEntry(**_table(b, f"bodies[{k}]", {"frame", "radius"},
+                                        ("frame", "radius")))
+                     for k, b in enumerate(bodies)),
         stances=tuple(StanceEntry(**_table(e, f"stances[{k}]", {"closed", "start"},
                                            ("closed", "start")))
                       for k, e in enumerate(stances)),

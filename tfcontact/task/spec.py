@@ -190,6 +190,33 @@ class ContactEntry:
 
 
 @dataclass(frozen=True)
+class BodyEntry:
+    """A point of the robot kept off the terrain: the sphere of `radius` on `frame` stays
+    above it at every stage of the discovery and of the stance re-solve (a path row
+    g(q) >= 0 with the contacts' gap function, `tfcontact.robot.Terrain.gap`). No force
+    acts on it: a body that may touch the ground is a contact (`ContactEntry`).
+
+    A knee or the base's underside that the collision check finds in the ground is kept
+    out this way (solo12's jump discovered on fixed steps landed with its thighs 57 mm
+    through the ground: benchmarks/legged.md).
+
+    Args:
+        frame: a frame of the robot model (e.g. a knee joint's frame).
+        radius: the sphere's radius [m] (> 0): how far the body reaches around the frame's
+            origin, e.g. half a thigh's width.
+    """
+
+    frame: str
+    radius: float
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.frame, str) or not self.frame:
+            raise InvalidInput(f"`bodies[].frame` must be a frame name, got {self.frame!r}")
+        object.__setattr__(self, "radius", finite(self.radius, f"bodies[{self.frame}].radius",
+                                                  low=0.0, strict=True, unit="m"))
+
+
+@dataclass(frozen=True)
 class PlaneTerrain:
     """Flat ground: the half-space above a plane through height `height` (along `normal`).
 
@@ -540,6 +567,8 @@ class Task:
             discovered plan (the same robot, contacts and grid), e.g. a walk up a step
             from the same walk on flat ground, which the discovery from the standing
             guess did not find (benchmarks/legged.md).
+        bodies: `BodyEntry`s, points of the robot kept off the terrain (knees, the base)
+            in the discovery and the stance re-solve (`[[bodies]]` in a task file).
         description: a line for `tfcontact plan --list`.
     """
 
@@ -577,6 +606,7 @@ class Task:
     stances: tuple[StanceEntry, ...] = ()
     ties: Mapping[str, str] = field(default_factory=dict)
     continuation: Continuation | None = None
+    bodies: tuple[BodyEntry, ...] = ()
     description: str = ""
 
     def __post_init__(self) -> None:
@@ -594,6 +624,15 @@ class Task:
         if len(set(frames)) != len(frames):
             raise InvalidInput(f"`contacts` names a frame twice: {frames}")
         object.__setattr__(self, "contacts", contacts)
+        bodies = tuple(self.bodies)
+        if not all(isinstance(b, BodyEntry) for b in bodies):
+            raise InvalidInput("`bodies` must be BodyEntry's: [[bodies]] with frame and radius")
+        named = [b.frame for b in bodies]
+        if len(set(named)) != len(named) or set(named) & set(frames):
+            raise InvalidInput(f"`bodies` names a frame twice or a contact's frame: {named} "
+                               f"(contacts: {frames}); a body is kept off the terrain, a "
+                               "contact may touch it: name each frame once")
+        object.__setattr__(self, "bodies", bodies)
         object.__setattr__(self, "horizon", finite(self.horizon, "horizon", low=0.0,
                                                    strict=True, unit="s"))
         object.__setattr__(self, "n_intervals", positive_int(self.n_intervals, "n_intervals"))

@@ -653,7 +653,8 @@ def check_collisions(
             when = float(times[k])
         hints.append(f"body '{b.body}' touches obstacle '{obstacle}' at t = "
                      f"{when:.3f} s (distance {_mm(distance)} mm): declare a contact on it "
-                     f"(ContactSpec on frame '{b.link}') or raise it")
+                     f"(ContactSpec on frame '{b.link}') or keep it above the terrain "
+                     "(a task's [[bodies]])")
     hints = tuple(hints)
     offenders = [(b.min_distance, _through(b)) for b in body_rows] if obstacles else []
     offenders += [(p.min_distance, f"body '{p.body_a}' {_depth(p.min_distance)} body "
