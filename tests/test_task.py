@@ -110,6 +110,8 @@ def _edited(task_file: Path, old: str, new: str) -> Path:
     ("horizon = 1.0\n", "", r"`task` lacks \['horizon'\]"),
     ("[start]", '[[bodies]]\nframe = "body"\nradius = 0\n[start]',
      r"`bodies\[body\].radius` must be finite > 0"),
+    ("[start]", '[[bodies]]\nframe = "body"\nradius = 0.1\ndiscovery = 0\n[start]',
+     r"`bodies\[body\].discovery` must be true or false, got 0"),
     ("[start]", '[[bodies]]\nframe = "body"\nraduis = 0.1\n[start]',
      r"`bodies\[0\]` has unknown keys \['raduis'\]"),
     ("[start]", '[[bodies]]\nframe = "toe"\nradius = 0.1\n[start]',
@@ -456,6 +458,23 @@ def test_bodies_are_kept_above_the_terrain_in_the_discovery_and_the_resolve():
         pin.framesForwardKinematics(model, data, q)
         expected = [data.oMf[model.getFrameId(k)].translation[2] - 0.025 for k in knees]
         np.testing.assert_allclose(np.asarray(gap(q)).ravel(), expected, atol=1e-12)
+
+    # a body kept by the re-solve only: the discovery drops its row, keeps the others,
+    # the re-solve keeps both; its plan's discovery stage solves with those rows
+    from tfcontact.scenes import plan_named
+    from tfcontact.task import discovery_path_rows
+
+    assert discovery_path_rows(task) is None
+    task = dataclasses.replace(task, bodies=(BodyEntry("FL_KFE", 0.025),
+                                             BodyEntry("HR_KFE", 0.025, discovery=False)),
+                               ties={"FR_HFE": "FL_HFE"})
+    total = build_task(task).problem.path.expression.shape[0]
+    assert total == steering + reach + 2 + 2
+    assert discovery_path_rows(task) == tuple(k for k in range(total)
+                                              if k != steering + reach + 1)
+    assert resolve_path_rows(task) == (*range(steering, steering + reach),
+                                       steering + reach, steering + reach + 1)
+    assert plan_named(task).stages[0].path_rows == discovery_path_rows(task)
 
     step = load_task(shipped_tasks()["biped-step"])
     step = dataclasses.replace(step, bodies=(BodyEntry("base_link", 0.05),))

@@ -129,12 +129,17 @@ class Discover(Stage):
     `continue_sigma`: None, the homotopy starts from the problem's own guess; a number,
     a continuation: it starts from the discovery before this stage (its whole iterate,
     `solve_contact(initial_guess=...)`: the same robot and grid) with sigma_0 =
-    `continue_sigma`, e.g. a walk up a step from the same walk found on flat ground."""
+    `continue_sigma`, e.g. a walk up a step from the same walk found on flat ground.
+
+    `path_rows`: the rows of the problem's path constraint the discovery keeps (None: all;
+    `tfcontact.task.discovery_path_rows`); the outcome keeps the whole problem, so a stance
+    re-solve after it chooses its own rows."""
 
     build: Callable[[str | None], PlanSetup]
     name: str = "discover"
     tasks: tuple[str, ...] | None = None
     continue_sigma: float | None = None
+    path_rows: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.continue_sigma is not None and not (
@@ -152,7 +157,8 @@ class Discover(Stage):
         from tfcontact.ocp.contact import solve_contact
 
         setup = self.build(given.task)
-        robot, problem, options = setup.robot, setup.problem, setup.options
+        robot, options = setup.robot, setup.options
+        problem = kept_path_rows(setup.problem, self.path_rows)
         if given.attempts is not None:
             options = dataclasses.replace(options, attempts=given.attempts)
         if given.verbose:

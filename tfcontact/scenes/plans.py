@@ -109,6 +109,7 @@ def task_plan(source: str | Path | Task) -> Plan:
     """
     from tfcontact.task import (
         Task,
+        discovery_path_rows,
         load_task,
         resolve_path_rows,
         shipped_tasks,
@@ -137,12 +138,14 @@ def task_plan(source: str | Path | Task) -> Plan:
     def build(_: str | None) -> PlanSetup:
         return _task_setup(data, data.exact_resolve)
 
-    discover: tuple[Stage, ...] = (Discover(build),)
+    discover: tuple[Stage, ...] = (Discover(build, path_rows=discovery_path_rows(data)),)
     if data.continuation is not None:  # the other task's discovery first, then this one
         before = data.continuation.task
         discover = (Discover(lambda _: _task_setup(before, data.exact_resolve),
-                             name=f"discover {before.name}"),
-                    Discover(build, continue_sigma=data.continuation.sigma))
+                             name=f"discover {before.name}",
+                             path_rows=discovery_path_rows(before)),
+                    Discover(build, continue_sigma=data.continuation.sigma,
+                             path_rows=discovery_path_rows(data)))
     if data.stances:  # the sequence is given: solved along it, no discovery
         return Plan(name=data.name, summary=data.description or origin,
                     tasks=("task",), stages=(GivenStances(

@@ -284,6 +284,19 @@ def resolve_path_rows(task: Task) -> tuple[int, ...]:
     return tuple(range(steering, steering + kept))
 
 
+def discovery_path_rows(task: Task) -> tuple[int, ...] | None:
+    """The rows of `build_task(task).problem.path` that the discovery keeps (`Discover`'s
+    `path_rows`): all but those of the `bodies` kept by the stance re-solve only
+    (`BodyEntry.discovery = false`); None when it keeps all."""
+    if all(b.discovery for b in task.bodies):
+        return None
+    steering = sum(int(c.no_slip) + int(c.clearance is not None) for c in task.contacts)
+    first = steering + sum(len(c.reach) for c in task.contacts)
+    dropped = {first + k for k, b in enumerate(task.bodies) if not b.discovery}
+    total = first + len(task.bodies) + 2 * len(task.ties)
+    return tuple(k for k in range(total) if k not in dropped)
+
+
 def _body_gaps(task: Task, robot: Any, ground: Any) -> list[Any]:
     """g(q) [m] of each of `task.bodies` against the terrain the contacts see (`ground`: a
     `Ground` half-space or a `Terrain`), in the robot twin's q."""

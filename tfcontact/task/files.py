@@ -37,6 +37,7 @@ Points of the robot that must not touch the terrain (`Task.bodies`) are kept abo
     [[bodies]]
     frame = "FL_KFE"              # a knee
     radius = 0.025
+    discovery = false             # kept by the stance re-solve only (default: both)
 
 The terrain is one plane (`[terrain]` with `height` and `normal`, default flat at 0) or
 primitives (`tfcontact.robot.Terrain`), each with the fields of its robot-layer class
@@ -199,7 +200,7 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         period=top.get("period"), period_from=top.get("period_from", 0.0),
         ties=top.get("ties", {}),
         continuation=_continuation(top.get("continuation"), folder),
-        bodies=tuple(BodyEntry(**_table(b, f"bodies[{k}]", {"frame", "radius"},
+        bodies=tuple(BodyEntry(**_table(b, f"bodies[{k}]", {"frame", "radius", "discovery"},
                                         ("frame", "radius")))
                      for k, b in enumerate(bodies)),
         stances=tuple(StanceEntry(**_table(e, f"stances[{k}]", {"closed", "start"},

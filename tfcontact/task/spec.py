@@ -204,16 +204,25 @@ class BodyEntry:
         frame: a frame of the robot model (e.g. a knee joint's frame).
         radius: the sphere's radius [m] (> 0): how far the body reaches around the frame's
             origin, e.g. half a thigh's width.
+        discovery: False: only the stance re-solve keeps the row (its exact plan is the
+            one the collision check judges; the discovery's relaxed plan only proposes
+            stances). On solo12's jump discovered on fixed steps, knee rows in the
+            discovery made its NLPs at sigma 1e-2 and 1e-3 stop at IPOPT's cap
+            (benchmarks/legged.md).
     """
 
     frame: str
     radius: float
+    discovery: bool = True
 
     def __post_init__(self) -> None:
         if not isinstance(self.frame, str) or not self.frame:
             raise InvalidInput(f"`bodies[].frame` must be a frame name, got {self.frame!r}")
         object.__setattr__(self, "radius", finite(self.radius, f"bodies[{self.frame}].radius",
                                                   low=0.0, strict=True, unit="m"))
+        if not isinstance(self.discovery, bool):
+            raise InvalidInput(f"`bodies[{self.frame}].discovery` must be true or false, got "
+                               f"{self.discovery!r}")
 
 
 @dataclass(frozen=True)
