@@ -1,10 +1,12 @@
 """Legged plans with several 3-D frictional contacts: size, iterations and where the time
 goes, one plan at a time in one run (issue 30, benchmarks/legged.md).
 
-    python scripts/bench_legged.py --pyramid    # quadruped-jump's first NLP: cone at eps_t
-                                                # 1e-7 and 1e-3, and the pyramid
-    python scripts/bench_legged.py quadruped-jump --eps-t 1e-3 --nlps 0 --out benchmarks/legged.md
+    python scripts/bench_legged.py --pyramid    # quadruped-jump-fesd's first NLP: cone
+                                                # at eps_t 1e-7 and 1e-3, and the pyramid
+    python scripts/bench_legged.py quadruped-jump-fesd --eps-t 1e-3 --nlps 0 \
+        --out benchmarks/legged.md
     python scripts/bench_legged.py biped-walk --whole    # the whole plan, stage by stage
+    python scripts/bench_legged.py quadruped-jump --whole
 
 Per task, friction model (`Task.friction_model`) and, for the cone, stick speed eps_t
 (`ContactEntry.eps_t`, set for every contact): DoF,
@@ -138,7 +140,7 @@ def table(rows: list[dict]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("names", nargs="*", default=["quadruped-jump"],
+    parser.add_argument("names", nargs="*", default=["quadruped-jump-fesd"],
                         help="shipped task names or task files")
     parser.add_argument("--eps-t", type=float, nargs="+", default=[1e-7, 1e-3],
                         help="stick speeds of the cone to compare [m/s]")

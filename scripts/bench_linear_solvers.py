@@ -7,7 +7,7 @@ benchmarks/linear_solvers.md).
 
 Plans: the hopper's bench task (`hopper_problem("bench")`, TF-8, one contact, planar
 friction), the 2-D ball tracking a circle at w = 3 pi (`box_circle_problem`, four walls,
-elastic) and the first NLP of the solo12 jump (`quadruped-jump` with the inscribed
+elastic) and the first NLP of the solo12 jump (`quadruped-jump-fesd` with the inscribed
 pyramid's friction, four feet; one NLP only: its homotopy does not converge,
 benchmarks/legged.md). Each plan
 keeps its own settings; only the linear solver changes:
@@ -69,7 +69,7 @@ def _ball() -> tuple[Any, Any]:
 def _jump_first_nlp() -> tuple[Any, Any]:
     from tfcontact.task import build_task, load_task, shipped_tasks
 
-    task = load_task(shipped_tasks()["quadruped-jump"])
+    task = load_task(shipped_tasks()["quadruped-jump-fesd"])
     setup = build_task(dataclasses.replace(task, friction_model="pyramid"))
     options = setup.options
     return setup.problem, dataclasses.replace(

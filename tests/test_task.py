@@ -309,14 +309,14 @@ def test_a_task_chooses_ipopts_barrier_update(task_file):
 
 
 def test_the_quadruped_jump_task_builds_solo12_with_four_3d_feet():
-    """`quadruped-jump`: solo12 on a floating base (6 + 8 coordinates with HAA locked),
+    """`quadruped-jump-fesd`: solo12 on a floating base (6 + 8 coordinates with HAA locked),
     four feet each with two tangents and the task's stick speed, standing on the ground at
     the start (Pinocchio's foot heights), a flight goal over all four."""
     import pinocchio as pin
 
     from tfcontact.ocp.goals import Flight
 
-    setup = build_task(load_task(shipped_tasks()["quadruped-jump"]))
+    setup = build_task(load_task(shipped_tasks()["quadruped-jump-fesd"]))
     cls = setup.problem.system.cls
     assert cls.q_names[:6] == ("x", "y", "z", "yaw", "pitch", "roll") and len(cls.q_names) == 14
     assert [c.tangents.shape[1] for c in cls.contacts] == [2, 2, 2, 2]
@@ -330,6 +330,32 @@ def test_the_quadruped_jump_task_builds_solo12_with_four_3d_feet():
                                0.0, atol=1e-6)
     assert Flight((0, 1, 2, 3), 0.1, 0.01) in setup.problem.goals
     assert setup.options.n_finite_elements == 2
+
+
+def test_the_quadruped_jump_is_discovered_on_fixed_steps_and_resolved_with_its_knees_up():
+    """`quadruped-jump`: all twelve joints, the discovery on fixed steps stopped at
+    residual 0.02 and re-solved exactly along the stances read at a 3 mm gap, the four
+    knees kept 25 mm above the ground by the re-solve only: its plan's discovery stage
+    drops those rows, its re-solve keeps them (with nothing else: no reach, no ties)."""
+    from tfcontact.fesd import Standard
+    from tfcontact.scenes import plan_named
+    from tfcontact.task import discovery_path_rows
+
+    task = load_task(shipped_tasks()["quadruped-jump"])
+    setup = build_task(task)
+    assert len(setup.problem.system.cls.q_names) == 18
+    assert isinstance(setup.options.method, Standard)
+    assert setup.options.homotopy.stop_residual == 0.02
+    assert [(b.frame, b.radius, b.discovery) for b in task.bodies] == [
+        (f"{leg}_KFE", 0.025, False) for leg in ("FL", "FR", "HL", "HR")]
+    assert task.exact_resolve and task.resolve["contact_gap"] == 0.003
+    path = setup.problem.path
+    assert path.expression.shape[0] == 4 + 4  # four no-slip rows, four knees
+    assert discovery_path_rows(task) == (0, 1, 2, 3)
+    assert resolve_path_rows(task) == (4, 5, 6, 7)
+    stages = plan_named(task).stages
+    assert [s.path_rows for s in stages] == [(0, 1, 2, 3), (4, 5, 6, 7)]
+    assert stages[1].options.contact_gap == 0.003
 
 
 def test_the_biped_walk_task_builds_bolt_with_two_feet_in_the_plane():
@@ -438,7 +464,7 @@ def test_bodies_are_kept_above_the_terrain_in_the_discovery_and_the_resolve():
 
     from tfcontact.task import BodyEntry
 
-    task = load_task(shipped_tasks()["quadruped-jump"])
+    task = load_task(shipped_tasks()["quadruped-jump-fesd"])
     knees = ("FL_KFE", "HR_KFE")
     task = dataclasses.replace(task, bodies=tuple(BodyEntry(k, 0.025) for k in knees))
     setup = build_task(task)
