@@ -279,9 +279,14 @@ def resolve_path_rows(task: Task) -> tuple[int, ...]:
     (`StanceResolve.path_rows`): the contacts' reach rows, a leg's range of motion, and
     the rows keeping `bodies` off the terrain. The rows before them (no-slip, clearance)
     and after them (ties) steer the discovery only."""
-    steering = sum(int(c.no_slip) + int(c.clearance is not None) for c in task.contacts)
-    kept = sum(len(c.reach) for c in task.contacts) + len(task.bodies)
-    return tuple(range(steering, steering + kept))
+    first = _first_kept_row(task)
+    return tuple(range(first, first + sum(len(c.reach) for c in task.contacts)
+                       + len(task.bodies)))
+
+
+def _first_kept_row(task: Task) -> int:
+    """The first path row after the contacts' steering rows (no-slip, clearance)."""
+    return sum(int(c.no_slip) + int(c.clearance is not None) for c in task.contacts)
 
 
 def discovery_path_rows(task: Task) -> tuple[int, ...] | None:
@@ -290,8 +295,7 @@ def discovery_path_rows(task: Task) -> tuple[int, ...] | None:
     (`BodyEntry.discovery = false`); None when it keeps all."""
     if all(b.discovery for b in task.bodies):
         return None
-    steering = sum(int(c.no_slip) + int(c.clearance is not None) for c in task.contacts)
-    first = steering + sum(len(c.reach) for c in task.contacts)
+    first = _first_kept_row(task) + sum(len(c.reach) for c in task.contacts)
     dropped = {first + k for k, b in enumerate(task.bodies) if not b.discovery}
     total = first + len(task.bodies) + 2 * len(task.ties)
     return tuple(k for k in range(total) if k not in dropped)
