@@ -505,6 +505,23 @@ def test_interrupted_sweep_keeps_its_finished_cases_and_resumes(tmp_path):
     assert (result.solved, result.resumed) == (1, 1) and len(_case_files(tmp_path)) == 2
 
 
+def test_a_sweep_says_it_is_running_while_no_case_finishes(tmp_path):
+    """`Progress.heartbeat`: a line whenever no case finished for that long (here 10 ms:
+    a case takes longer), before the case's own line."""
+    import io
+
+    from tfcontact.sweep.run import ProgressLines
+
+    stream = io.StringIO()
+    run_sweep(SweepSpec("particle", starts=1, task="reduced"), tmp_path, n_workers=1,
+              progress=ProgressLines(stream, heartbeat=0.01))
+    lines = stream.getvalue().splitlines()
+    case = next(k for k, line in enumerate(lines) if line.startswith("[1/1]"))
+    waiting = [line for line in lines[:case] if line.startswith("sweep: 0/1 solved, the "
+                                                                 "others running or queued")]
+    assert waiting and all(line.endswith(" s elapsed") for line in waiting)
+
+
 def test_a_case_that_raises_is_recorded_and_solved_again(tmp_path, monkeypatch):
     """A start that cannot be drawn raises on the worker: the case is saved with status
     "error" and the exception, and a rerun tries it again."""

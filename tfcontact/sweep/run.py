@@ -113,7 +113,12 @@ def run_later_stages(plan: str, task: str, stages, outcome) -> tuple[Any, list[d
 
 
 class Progress(ABC):
-    """What a sweep tells as it runs (strategy: lines, nothing, or a test's hook)."""
+    """What a sweep tells as it runs (strategy: lines, nothing, or a test's hook).
+
+    `heartbeat` [s]: while no case finishes, `running` is told this often (a solo12 case
+    runs 11 minutes or more: without it a sweep is silent that long)."""
+
+    heartbeat: float = 60.0
 
     @abstractmethod
     def started(self, total: int, pending: int, cluster: str) -> None:
@@ -126,6 +131,9 @@ class Progress(ABC):
     @abstractmethod
     def note(self, text: str) -> None:
         """Something the user should know (a case file re-solved, ...)."""
+
+    def running(self, done: int, pending: int, elapsed: float) -> None:  # noqa: B027
+        """No case finished for `heartbeat` seconds: `done` of `pending` solved so far."""
 
 
 class Silent(Progress):
@@ -143,9 +151,10 @@ class ProgressLines(Progress):
     """One line per finished case with the counts so far and the time left (log-friendly,
     unlike a redrawn bar)."""
 
-    def __init__(self, stream: TextIO | None = None):
+    def __init__(self, stream: TextIO | None = None, heartbeat: float = Progress.heartbeat):
         self.stream = stream
         self.verified = 0
+        self.heartbeat = heartbeat
 
     def _print(self, text: str) -> None:
         print(text, file=self.stream or sys.stdout, flush=True)
@@ -170,6 +179,10 @@ class ProgressLines(Progress):
 
     def note(self, text: str) -> None:
         self._print(f"sweep: {text}")
+
+    def running(self, done: int, pending: int, elapsed: float) -> None:
+        self._print(f"sweep: {done}/{pending} solved, the others running or queued, "
+                    f"{elapsed:.0f} s elapsed")
 
 
 def run_sweep(spec: SweepSpec, out_dir: Path | str, *, scheduler: str | None = None,
@@ -371,12 +384,29 @@ def worker_threads(client: Any) -> dict[str, str]:
     return {n: "/".join(sorted({env[n] for env in seen})) for n in THREAD_VARIABLES}
 
 
+def _as_finished(futures: list, reporter: Progress, began: float) -> Iterator[Any]:
+    """`futures` as they finish; `reporter.running` whenever none finishes for its
+    `heartbeat` seconds."""
+    from distributed import wait
+
+    remaining, done = list(futures), 0
+    while remaining:
+        try:
+            finished, _ = wait(remaining, timeout=reporter.heartbeat,
+                               return_when="FIRST_COMPLETED")
+        except TimeoutError:
+            reporter.running(done, len(futures), time.perf_counter() - began)
+            continue
+        for future in [f for f in remaining if f in finished]:  # in submission order
+            remaining.remove(future)
+            done += 1
+            yield future
+
+
 def _solve(client: Any, pending: list[SweepCase], spec: SweepSpec, target: SweepTarget,
            reporter: Progress, cases_dir: Path, solved: list[CaseResult]) -> None:
     """Solve the pending cases, saving, reporting and appending to `solved` each record as
     it finishes; on any exit the cases still running are cancelled."""
-    from distributed import as_completed
-
     futures = []
     try:
         token = uuid.uuid4().hex[:8]
@@ -385,7 +415,7 @@ def _solve(client: Any, pending: list[SweepCase], spec: SweepSpec, target: Sweep
                    for case in pending]
         by_key = {f.key: case for f, case in zip(futures, pending, strict=True)}
         began = time.perf_counter()
-        for done, future in enumerate(as_completed(futures), start=1):
+        for done, future in enumerate(_as_finished(futures, reporter, began), start=1):
             case = by_key[future.key]
             error = future.exception()
             if error is None:
