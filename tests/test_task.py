@@ -112,6 +112,8 @@ def _edited(task_file: Path, old: str, new: str) -> Path:
      r"`bodies\[body\].radius` must be finite > 0"),
     ("[start]", '[[bodies]]\nframe = "body"\nradius = 0.1\ndiscovery = 0\n[start]',
      r"`bodies\[body\].discovery` must be true or false, got 0"),
+    ("[start]", '[[bodies]]\nframe = "body"\nradius = 0.1\ndiscovery = false\n[start]',
+     r"`bodies` \['body'\] have `discovery = false`: only the stance re-solve would keep"),
     ("[start]", '[[bodies]]\nframe = "body"\nraduis = 0.1\n[start]',
      r"`bodies\[0\]` has unknown keys \['raduis'\]"),
     ("[start]", '[[bodies]]\nframe = "toe"\nradius = 0.1\n[start]',
@@ -493,7 +495,7 @@ def test_bodies_are_kept_above_the_terrain_in_the_discovery_and_the_resolve():
     assert discovery_path_rows(task) is None
     task = dataclasses.replace(task, bodies=(BodyEntry("FL_KFE", 0.025),
                                              BodyEntry("HR_KFE", 0.025, discovery=False)),
-                               ties={"FR_HFE": "FL_HFE"})
+                               ties={"FR_HFE": "FL_HFE"}, exact_resolve=True)
     total = build_task(task).problem.path.expression.shape[0]
     assert total == steering + reach + 2 + 2
     assert discovery_path_rows(task) == tuple(k for k in range(total)

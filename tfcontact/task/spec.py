@@ -724,6 +724,14 @@ class Task:
                                    f"mirrored), got {other!r}")
         object.__setattr__(self, "ties", _frozen(ties))
         self._check_continuation(frames)
+        resolve_only = [b.frame for b in self.bodies if not b.discovery]
+        if resolve_only and not self.stances and (
+                not self.exact_resolve or len(self.contacts) < 2):
+            raise InvalidInput(
+                f"`bodies` {resolve_only} have `discovery = false`: only the stance "
+                "re-solve would keep them, which runs with `exact_resolve = true` and "
+                "several contacts, or along given `stances`; set those or drop "
+                "`discovery = false`")
         for name in ("resolve_elements", "resolve"):
             if getattr(self, name) and not self.stances and (
                     not self.exact_resolve or len(self.contacts) < 2):
