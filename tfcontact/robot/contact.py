@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -66,6 +67,11 @@ class Ground:
         n = n / np.linalg.norm(n)
         object.__setattr__(self, "height", float(self.height))
         object.__setattr__(self, "normal", tuple(float(x) for x in n))
+
+    def gap(self, point: Any, radius: float) -> Any:
+        """g = normal . p - height - r [m] of a sphere of `radius` centred at `point` (a
+        casadi 3-vector), as `Terrain.gap`."""
+        return ca.dot(ca.DM(self.normal), point) - self.height - radius
 
     def tangents(self, planar: bool) -> np.ndarray:
         """World tangent directions as columns (3 x 1 if `planar`, else 3 x 2).
@@ -157,7 +163,7 @@ def contact_terms(twin: RobotTwin, contacts: Sequence[ContactSpec], ground: Grou
         p = twin.frame_position(c.frame)
         J = twin.frame_jacobian(c.frame)[0:3, :]
         drift = twin.frame_drift(c.frame)[0:3]
-        gap = ca.dot(ca.DM(n_w), p) - ground.height - c.radius
+        gap = ground.gap(p, c.radius)
         out.append(ContactTerms(
             contact=c,
             position=p,

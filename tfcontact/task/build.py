@@ -98,7 +98,8 @@ def build_task(task: Task) -> TaskSetup:
         frictions = [0.0 if c.friction is None else c.friction for c in task.contacts]
     else:
         ground = task.terrain.terrain.relevant_to(
-            task_region(task, robot), margin=max(c.radius for c in task.contacts))
+            task_region(task, robot),
+            margin=max(e.radius for e in (*task.contacts, *task.bodies)))
         frictions = [_terrain_friction(ground, c.frame) if c.friction is None
                      else c.friction for c in task.contacts]
     # unactuated (f_v = -h): the controls, on joints or base coordinates, are added below
@@ -303,19 +304,14 @@ def discovery_path_rows(task: Task) -> tuple[int, ...] | None:
 
 def _body_gaps(task: Task, robot: Any, ground: Any) -> list[Any]:
     """g(q) [m] of each of `task.bodies` against the terrain the contacts see (`ground`: a
-    `Ground` half-space or a `Terrain`), in the robot twin's q."""
-    from tfcontact.robot import Ground
-
+    `Ground` half-space or a `Terrain`, each with the contacts' `gap`), in the robot
+    twin's q."""
     gaps = []
     for body in task.bodies:
         if body.frame not in robot.twin.frame_names:
             raise InvalidInput(f"`bodies[{body.frame}].frame` is not a frame of the model; "
                                f"its frames: {', '.join(robot.twin.frame_names)}")
-        point = robot.twin.frame_position(body.frame)
-        if isinstance(ground, Ground):  # the half-space's gap, as the contacts'
-            gaps.append(ca.dot(ca.DM(ground.normal), point) - ground.height - body.radius)
-        else:
-            gaps.append(ground.gap(point, body.radius))
+        gaps.append(ground.gap(robot.twin.frame_position(body.frame), body.radius))
     return gaps
 
 
