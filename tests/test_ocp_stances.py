@@ -243,6 +243,30 @@ def test_the_schedule_of_samples_keeps_the_order_of_touchdowns_and_lift_offs():
         ((0, 1), 0.0), ((1,), 0.05)]
 
 
+def test_end_standing_drops_the_lift_offs_with_no_touchdown_after_them():
+    """A jump's relaxed plan that lands and lifts its feet again before T (solo12: a
+    flight from 0.55 s): with `end_standing` every foot stays down from its last
+    touchdown (a foot that leaves for good stays down from the start); a foot never down
+    stays open, and the swings before a touchdown are kept."""
+    t = np.linspace(0.0, 1.0, 101)
+    gaps = np.zeros((101, 4))
+    gaps[(t > 0.22) & (t < 0.605), :2] = 0.1  # feet 0 and 1 jump, land at 0.61 s
+    gaps[t > 0.855, 0] = 0.02  # foot 0 lifts again at the end
+    gaps[t > 0.755, 1] = 0.02  # and foot 1
+    gaps[t > 0.155, 2] = 0.05  # foot 2 leaves for good
+    gaps[:, 3] = 0.05  # foot 3 is never down
+    found = stance_schedule(t, gaps, 1.0, 20)
+    assert [(s.closed, round(s.start, 3)) for s in found] == [
+        ((0, 1, 2), 0.0), ((0, 1), 0.15), ((), 0.2), ((0, 1), 0.61), ((0,), 0.75),
+        ((), 0.85)]
+    standing = stance_schedule(t, gaps, 1.0, 20, StanceOptions(end_standing=True))
+    assert [(s.closed, round(s.start, 3)) for s in standing] == [
+        ((0, 1, 2), 0.0), ((2,), 0.2), ((0, 1, 2), 0.61)]
+    assert standing[-1].end == 1.0
+    with pytest.raises(InvalidInput, match="end_standing"):
+        StanceOptions(end_standing=1)
+
+
 def test_a_flight_no_control_jump_can_hold_is_closed_over():
     """A lift-off goes to a control jump, so a flight with no jump between the contact's
     closing before it and its touchdown cannot be modelled: the contact stays closed

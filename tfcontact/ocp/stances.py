@@ -162,6 +162,11 @@ class StanceOptions:
             collocation points only).
         flight_gap, contact_gap: `stance_schedule` opens a contact above `flight_gap` [m]
             and closes it again below `contact_gap` [m].
+        end_standing: `stance_schedule` drops every lift-off with no touchdown after it:
+            each contact once down (at the start or a touchdown) ends down, closed from its
+            last touchdown (or the start) to T, for a task that ends standing. A relaxed
+            plan may lift its feet once the goals are met (solo12's jump: a flight from
+            0.55 s, the feet 2-3 cm up at T), and the re-solve keeps what it is given.
         switch_margin: touchdowns keep this fraction of a control interval from its ends.
             With 0.002 bolt's walks found cheaper plans, but one put a touchdown 0.1 ms
             before a lift-off, and the reference failed it (benchmarks/legged.md).
@@ -272,6 +277,7 @@ class StanceOptions:
     interior_rows: int = 0
     flight_gap: float = 5e-3
     contact_gap: float = 1e-3
+    end_standing: bool = False
     switch_margin: float = 0.02
     open_slip_gains: tuple[float | None, ...] = ()
     swing_heights: tuple[float | None, ...] = ()
@@ -298,7 +304,7 @@ class StanceOptions:
     def __post_init__(self) -> None:
         if self.integrator not in ("rk4", "radau"):
             raise InvalidInput(f"`integrator` must be 'rk4' or 'radau', got {self.integrator!r}")
-        for name in ("swing_fallback", "swing_middle", "end_height_rows"):
+        for name in ("swing_fallback", "swing_middle", "end_height_rows", "end_standing"):
             if not isinstance(getattr(self, name), bool):
                 raise InvalidInput(f"`{name}` must be True or False, got "
                                    f"{getattr(self, name)!r}")
@@ -387,7 +393,8 @@ def stance_schedule(t: np.ndarray, gaps: np.ndarray, horizon: float, n_intervals
     control jump between the contact's closing before it (its touchdown, or the start)
     and its touchdown cannot be modelled (its lift-off has no jump to go to): the contact
     stays closed across it (a relaxed plan's chatter; the rule before gave it a spurious
-    flight and stance).
+    flight and stance). With `options.end_standing` a lift-off with no touchdown after it
+    is dropped: the contact stays closed to T.
 
     Args:
         t: sample times [s], (n,); gaps: the contacts' gaps [m] there, (n, n_contacts).
@@ -418,7 +425,7 @@ def stance_schedule(t: np.ndarray, gaps: np.ndarray, horizon: float, n_intervals
                     lift_offs.append((lifted, i))
                 touchdowns.append((float(t[k]), i))
                 closing = float(t[k])
-        if lift_off is not None:
+        if lift_off is not None and not options.end_standing:
             lift_offs.append((lift_off, i))
     changes: dict[float, tuple[set[int], set[int]]] = {}  # time -> (closes, opens)
     for at, i in touchdowns:

@@ -55,7 +55,7 @@ def _names(mapping: Mapping[str, Any], where: str) -> dict[str, Any]:
 RESOLVE_SETTINGS = frozenset({"cone_facets", "min_normal_force", "touchdown_speed",
                               "interior_rows", "contact_tolerance", "cone_margin",
                               "swing_middle", "discovery_residual", "lifted_forces",
-                              "barrier", "flight_gap", "contact_gap"})
+                              "barrier", "flight_gap", "contact_gap", "end_standing"})
 """The `tfcontact.ocp.StanceOptions` fields a task's `[resolve]` table may set."""
 
 
@@ -548,7 +548,8 @@ class Task:
             `contact_tolerance`, `cone_margin`, `swing_middle`, `discovery_residual`,
             `lifted_forces`, `barrier`, and `flight_gap`, `contact_gap` (the gaps [m]
             at which the discovery's relaxed plan opens and closes a contact when its
-            stances are read).
+            stances are read), `end_standing` (the contacts down after their last
+            touchdown stay down to T).
             What a plan of four 3-D feet needed is in benchmarks/legged.md.
         attempts: solves of the plan at most (default: the preset's): a plan that fails
             is solved again from its guess perturbed (`ContactSolverOptions.attempts`).
