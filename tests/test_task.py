@@ -490,14 +490,27 @@ def test_bodies_are_kept_above_the_terrain_in_the_discovery_and_the_resolve():
     # a body kept by the re-solve only: the discovery drops its row, keeps the others,
     # the re-solve keeps both; its plan's discovery stage solves with those rows
     from tfcontact.scenes import plan_named
-    from tfcontact.task import discovery_path_rows
+    from tfcontact.task import discovery_path_rows, path_row_layout
 
     assert discovery_path_rows(task) is None
     task = dataclasses.replace(task, bodies=(BodyEntry("FL_KFE", 0.025),
                                              BodyEntry("HR_KFE", 0.025, discovery=False)),
                                ties={"FR_HFE": "FL_HFE"}, exact_resolve=True)
-    total = build_task(task).problem.path.expression.shape[0]
+    built = build_task(task)
+    total = built.problem.path.expression.shape[0]
     assert total == steering + reach + 2 + 2
+    layout = path_row_layout(task)
+    assert len(layout) == total
+    assert [(r.kind, r.name, r.axis, r.discovery, r.resolve) for r in layout[steering + reach:]
+            ] == [("body", "FL_KFE", "", True, True), ("body", "HR_KFE", "", False, True),
+                  ("tie", "FR_HFE", "q", True, False), ("tie", "FR_HFE", "v", True, False)]
+    # the tie's rows are where the layout puts them: q_FR_HFE - q_FL_HFE, then the speeds'
+    tied = built.problem.system.cls
+    names = list(tied.q_names)
+    tie = ca.Function("tie", [tied.q, tied.v], [built.problem.path.expression[total - 2:]])
+    q, v = rng.uniform(-1, 1, tied.n_q), rng.uniform(-1, 1, tied.n_q)
+    i, j = names.index("FR_HFE"), names.index("FL_HFE")
+    np.testing.assert_allclose(np.asarray(tie(q, v)).ravel(), [q[i] - q[j], v[i] - v[j]])
     assert discovery_path_rows(task) == tuple(k for k in range(total)
                                               if k != steering + reach + 1)
     assert resolve_path_rows(task) == (*range(steering, steering + reach),

@@ -6,11 +6,13 @@ solver preset; `build_task` turns it into the contact problem that `solve_contac
 """
 
 from tfcontact.task.build import (
+    PathRow,
     TaskSetup,
     build_task,
     contact_reach,
     coordinate_names,
     discovery_path_rows,
+    path_row_layout,
     resolve_path_rows,
     solver_options,
     task_region,
@@ -47,6 +49,7 @@ __all__ = [
     "Continuation",
     "Costs",
     "Goals",
+    "PathRow",
     "PlaneTerrain",
     "PrimitiveTerrain",
     "RobotEntry",
@@ -59,6 +62,7 @@ __all__ = [
     "coordinate_names",
     "discovery_path_rows",
     "load_task",
+    "path_row_layout",
     "plan",
     "resolve_path_rows",
     "solver_options",

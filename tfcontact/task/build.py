@@ -141,61 +141,63 @@ def build_task(task: Task) -> TaskSetup:
 
     lower, upper = _state_bounds(task, robot, state_names)
     u_bound = _effort(task, robot, actuated)
-    # A task's path rows are its contacts' no-slip and clearance rows, which steer the
-    # discovery (the stance re-solve of several contacts drops them: every closed contact
-    # sticks there and the stances found are kept), then their reach rows, which it keeps
-    # (`resolve_path_rows`: a new kind of path row must update it).
-    path = None
-    rows, row_upper, row_lower = [], [], []
+    # The path rows in `path_row_layout`'s order, which also says which stage keeps each.
+    gap = {c.frame: contact.gap for contact, c in zip(cls.contacts, task.contacts, strict=True)}
+    entries = {c.frame: c for c in task.contacts}
     for c, entry in zip(cls.contacts, task.contacts, strict=True):
         for name, asked in (("no_slip", entry.no_slip), ("clearance", entry.clearance)):
             if asked and c.mu == 0.0:
                 raise InvalidInput(f"`contacts[{entry.frame}].{name}` needs friction > 0 "
                                    "(a frictionless contact has no tangents: no force to "
                                    "stop a slide, no speed along the ground)")
-        if entry.no_slip or entry.clearance is not None:
-            speed2 = ca.sumsqr(ca.mtimes(c.tangents.T, cls.v))  # ||v_t||^2
-        if entry.no_slip:
-            rows.append(speed2 - entry.no_slip_gain * c.gap)
-            row_lower.append(-np.inf)
-            row_upper.append(0.0)
-        if entry.clearance is not None:  # h v_t^2 <= gap (v_t^2 + c^2), smooth at v_t = 0
-            rows.append(entry.clearance * speed2
-                        - c.gap * (speed2 + entry.clearance_speed ** 2))
-            row_lower.append(-np.inf)
-            row_upper.append(0.0)
+    speed2 = {c.frame: ca.sumsqr(ca.mtimes(contact.tangents.T, cls.v))  # ||v_t||^2
+              for contact, c in zip(cls.contacts, task.contacts, strict=True)
+              if c.no_slip or c.clearance is not None}
     base = "root_joint" if robot.model.existFrame("root_joint") else "universe"
     to_base = robot.twin.frame_rotation(base).T
-    for entry in task.contacts:
-        if not entry.reach:
-            continue
-        offset = ca.mtimes(to_base, robot.twin.frame_position(entry.frame)
-                           - robot.twin.frame_position(base))
-        for axis, (low, high) in entry.reach.items():
-            rows.append(offset["xyz".index(axis)])
-            row_lower.append(low)
-            row_upper.append(high)
-    # the bodies kept off the terrain, also kept by the stance re-solve
-    for body, gap in zip(task.bodies, _body_gaps(task, robot, ground), strict=True):
-        start_gap = float(ca.Function("g", [cls.q], [gap])(x0[:len(names)]))
-        if start_gap < -1e-9:
-            raise InvalidInput(f"the start puts `bodies[{body.frame}]` {-start_gap:.4g} m into "
-                               "the terrain; raise the base in `start` or shrink its radius")
-        rows.append(gap)
-        row_lower.append(0.0)
-        row_upper.append(np.inf)
-    # ties after the reach and body rows: they steer the discovery only (`resolve_path_rows`)
-    for name, other in task.ties.items():
-        sign = -1.0 if other.startswith("-") else 1.0
-        i, j = names.index(name), names.index(other.removeprefix("-"))
-        n = len(names)
-        if max(abs(x0[i] - sign * x0[j]), abs(x0[n + i] - sign * x0[n + j])) > 1e-9:
-            raise InvalidInput(f"the start breaks `ties.{name} = {other!r}` ({name} = "
-                               f"{x0[i]:g}, {other.removeprefix('-')} = {x0[j]:g}, velocities "
-                               f"{x0[n + i]:g}, {x0[n + j]:g}); start them tied")
-        rows += [cls.q[i] - sign * cls.q[j], cls.v[i] - sign * cls.v[j]]
-        row_lower += [0.0, 0.0]
-        row_upper += [0.0, 0.0]
+    body_gaps = dict(zip((b.frame for b in task.bodies), _body_gaps(task, robot, ground),
+                         strict=True))
+    path = None
+    rows, row_upper, row_lower = [], [], []
+    for row in path_row_layout(task):
+        if row.kind == "no_slip":
+            entry = entries[row.name]
+            rows.append(speed2[row.name] - entry.no_slip_gain * gap[row.name])
+            low, high = -np.inf, 0.0
+        elif row.kind == "clearance":  # h v_t^2 <= gap (v_t^2 + c^2), smooth at v_t = 0
+            entry = entries[row.name]
+            rows.append(entry.clearance * speed2[row.name]
+                        - gap[row.name] * (speed2[row.name] + entry.clearance_speed ** 2))
+            low, high = -np.inf, 0.0
+        elif row.kind == "reach":  # the foot's offset from the base, in the base's axes
+            offset = ca.mtimes(to_base, robot.twin.frame_position(row.name)
+                               - robot.twin.frame_position(base))
+            rows.append(offset["xyz".index(row.axis)])
+            low, high = entries[row.name].reach[row.axis]
+        elif row.kind == "body":
+            start_gap = float(ca.Function("g", [cls.q], [body_gaps[row.name]])(
+                x0[:len(names)]))
+            if start_gap < -1e-9:
+                raise InvalidInput(f"the start puts `bodies[{row.name}]` {-start_gap:.4g} m "
+                                   "into the terrain; raise the base in `start` or shrink "
+                                   "its radius")
+            rows.append(body_gaps[row.name])
+            low, high = 0.0, np.inf
+        else:  # a tie: its position (axis "q") and velocity (axis "v") rows
+            other = task.ties[row.name]
+            sign = -1.0 if other.startswith("-") else 1.0
+            i, j = names.index(row.name), names.index(other.removeprefix("-"))
+            n = len(names)
+            if max(abs(x0[i] - sign * x0[j]), abs(x0[n + i] - sign * x0[n + j])) > 1e-9:
+                raise InvalidInput(f"the start breaks `ties.{row.name} = {other!r}` "
+                                   f"({row.name} = {x0[i]:g}, {other.removeprefix('-')} = "
+                                   f"{x0[j]:g}, velocities {x0[n + i]:g}, {x0[n + j]:g}); "
+                                   "start them tied")
+            coordinates = cls.q if row.axis == "q" else cls.v
+            rows.append(coordinates[i] - sign * coordinates[j])
+            low, high = 0.0, 0.0
+        row_lower.append(low)
+        row_upper.append(high)
     if rows:
         path = Constraint(ca.vertcat(*rows),
                           lower=np.array(row_lower), upper=np.array(row_upper))
@@ -275,31 +277,59 @@ def solver_options(task: Task) -> Any:
     return options
 
 
+@dataclass(frozen=True)
+class PathRow:
+    """One row of a built task's path constraint (`path_row_layout`).
+
+    kind: "no_slip", "clearance" (a contact's rows that steer the discovery), "reach" (a
+    foot's range along a base axis), "body" (a body kept off the terrain) or "tie" (two
+    coordinates moving together); name: the contact's or body's frame, or the tie's
+    coordinate; axis: the reach row's base axis, or a tie's "q" or "v" row; discovery,
+    resolve: whether the discovery and the stance re-solve keep it."""
+
+    kind: str
+    name: str
+    axis: str = ""
+    discovery: bool = True
+    resolve: bool = False
+
+
+def path_row_layout(task: Task) -> tuple[PathRow, ...]:
+    """The rows of `build_task(task).problem.path` in order, from the task alone (no robot
+    is loaded): each contact's no-slip and clearance rows, then every contact's reach rows,
+    the bodies, the ties. The stance re-solve keeps the reach and body rows (every closed
+    contact sticks there and the stances found are kept; the rest steer the discovery);
+    the discovery drops the bodies with `discovery = false`."""
+    rows: list[PathRow] = []
+    for c in task.contacts:
+        if c.no_slip:
+            rows.append(PathRow("no_slip", c.frame))
+        if c.clearance is not None:
+            rows.append(PathRow("clearance", c.frame))
+    for c in task.contacts:
+        rows += [PathRow("reach", c.frame, axis, resolve=True) for axis in c.reach]
+    rows += [PathRow("body", b.frame, discovery=b.discovery, resolve=True)
+             for b in task.bodies]
+    for name in task.ties:
+        rows += [PathRow("tie", name, "q"), PathRow("tie", name, "v")]
+    return tuple(rows)
+
+
 def resolve_path_rows(task: Task) -> tuple[int, ...]:
     """The rows of `build_task(task).problem.path` that a stance re-solve keeps
     (`StanceResolve.path_rows`): the contacts' reach rows, a leg's range of motion, and
-    the rows keeping `bodies` off the terrain. The rows before them (no-slip, clearance)
-    and after them (ties) steer the discovery only."""
-    first = _first_kept_row(task)
-    return tuple(range(first, first + sum(len(c.reach) for c in task.contacts)
-                       + len(task.bodies)))
-
-
-def _first_kept_row(task: Task) -> int:
-    """The first path row after the contacts' steering rows (no-slip, clearance)."""
-    return sum(int(c.no_slip) + int(c.clearance is not None) for c in task.contacts)
+    the rows keeping `bodies` off the terrain (`path_row_layout`)."""
+    return tuple(k for k, row in enumerate(path_row_layout(task)) if row.resolve)
 
 
 def discovery_path_rows(task: Task) -> tuple[int, ...] | None:
     """The rows of `build_task(task).problem.path` that the discovery keeps (`Discover`'s
     `path_rows`): all but those of the `bodies` kept by the stance re-solve only
     (`BodyEntry.discovery = false`); None when it keeps all."""
-    if all(b.discovery for b in task.bodies):
+    layout = path_row_layout(task)
+    if all(row.discovery for row in layout):
         return None
-    first = _first_kept_row(task) + sum(len(c.reach) for c in task.contacts)
-    dropped = {first + k for k, b in enumerate(task.bodies) if not b.discovery}
-    total = first + len(task.bodies) + 2 * len(task.ties)
-    return tuple(k for k in range(total) if k not in dropped)
+    return tuple(k for k, row in enumerate(layout) if row.discovery)
 
 
 def _body_gaps(task: Task, robot: Any, ground: Any) -> list[Any]:
