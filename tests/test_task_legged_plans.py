@@ -32,6 +32,10 @@ def test_biped_walk_short_steps_once_per_foot_verified_and_clear(tmp_path):
     stages = {entry["stage"]: entry for entry in summary["stages"]}
     assert stages["discover"]["ran"] and stages["stance re-solve"]["status"] == "converged"
     assert stages["collision check"]["status"] == "clear"
+    # the gait report: one foot at a time, both feet stepping (a planar biped: no name)
+    assert summary["gait"]["name"] == ""
+    assert all(len(group) == 1 for group in summary["gait"]["groups"])
+    assert {g[0] for g in summary["gait"]["groups"]} == {"FL_FOOT", "FR_FOOT"}
     trajectory = load_trajectory(tmp_path / "trajectory.npz")
     assert trajectory.verification["passed"]
     model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
@@ -78,6 +82,8 @@ def test_solo12_jumps_along_its_given_contact_sequence_verified_and_clear(tmp_pa
     stages = {entry["stage"]: entry for entry in summary["stages"]}
     assert stages["stance solve"]["status"] == "converged" and "discover" not in stages
     assert stages["collision check"]["status"] == "clear"
+    assert summary["gait"] == {"name": "pronk", "groups": [
+        ["FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"]]}
     trajectory = load_trajectory(tmp_path / "trajectory.npz")
     assert trajectory.verification["passed"]
     model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
@@ -128,8 +134,12 @@ def test_solo12_trots_along_its_given_contact_sequence_verified_and_clear(tmp_pa
                                   lift_offs=dict.fromkeys(full.goals.lift_offs, 1)))
     assert [s.closed for s in task.stances][1:4:2] == [("FR_FOOT", "HL_FOOT"),
                                                        ("FL_FOOT", "HR_FOOT")]
+    import json
+
     report = run_plan(task, tmp_path, verbose=False)
     assert report.success and report.status == "converged", report.summary
+    gait = json.loads((tmp_path / "summary.json").read_text())["gait"]
+    assert gait == {"name": "trot", "groups": [["FL_FOOT", "HR_FOOT"], ["FR_FOOT", "HL_FOOT"]]}
     trajectory = load_trajectory(tmp_path / "trajectory.npz")
     assert trajectory.verification["passed"] and trajectory.task["passed"]
     model = load_robot(RobotSpec.from_dict(trajectory.robot)).model

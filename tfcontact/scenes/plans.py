@@ -37,6 +37,7 @@ if TYPE_CHECKING:
 
     import numpy as np
 
+    from tfcontact.ocp.gait import GaitReport
     from tfcontact.robot import Ground
     from tfcontact.task import Task
 
@@ -240,10 +241,13 @@ def run_plan(name: str | Path | Task, out_dir: Path | str, *, task: str | None =
                 plan=name, task=task, verbose=verbose)
         collision_files = ([] if report is None
                            else [save_collision_figure(report, stage / "collisions.png")])
+        gait = gait_report(outcome)
         files = _write_outcome(name, task, stage, start, outcome, collisions,
-                               collision_files, stage_times)
+                               collision_files, stage_times, gait)
     files = [folder.final_path(f, stage) for f in files]
     if verbose:
+        if gait is not None:
+            print(gait.line())
         print(f"wrote {len(files)} files to {folder.target}/:")
         for f in files:
             print(f"  {f}")
@@ -255,12 +259,38 @@ def run_plan(name: str | Path | Task, out_dir: Path | str, *, task: str | None =
                       out_dir=folder.target, files=tuple(files), summary=outcome.summary)
 
 
+def gait_report(outcome: PlanOutcome, height: float = 0.01) -> GaitReport | None:
+    """The gait of a plan with two contacts or more (`tfcontact.ocp.gait.name_gait`):
+    which feet lift above `height` [m] together, each foot's side read from its place
+    relative to the base at the start; None without a trajectory or robot."""
+    import numpy as np
+    import pinocchio as pin
+
+    from tfcontact.ocp.gait import name_gait
+    from tfcontact.plan_format import physical_time
+
+    traj, robot = outcome.trajectory, outcome.robot
+    contacts = [] if traj is None else traj.robot.get("contacts", [])
+    if robot is None or len(contacts) < 2:
+        return None
+    model, data = robot.model, robot.model.createData()
+    pin.framesForwardKinematics(model, data, traj.q[0])
+    base = data.oMf[model.getFrameId("root_joint" if model.existFrame("root_joint")
+                                     else "universe")]
+    offsets = [base.actInv(data.oMf[model.getFrameId(c["frame"])]).translation
+               for c in contacts]
+    phys = physical_time(traj)
+    return name_gait(phys.t, phys.gap, [c["frame"] for c in contacts], np.array(offsets),
+                     height=height)
+
+
 def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanOutcome,
                    collisions: dict, collision_files: list[Path],
-                   stage_times: list[dict]) -> list[Path]:
+                   stage_times: list[dict], gait: GaitReport | None = None) -> list[Path]:
     """Write the trajectory, figures, replay and summary.json of a solved (or failed) plan
     into `out`; returns the paths written. `stage_times`: each stage's name, status,
-    iterations and seconds; the writing's own seconds are added."""
+    iterations and seconds; the writing's own seconds are added; `gait`: the plan's gait
+    (`gait_report`), written as summary.json's "gait"."""
     from tfcontact.plan_format import save_trajectory
     from tfcontact.plan_format.resolved import save_resolved_plan
     from tfcontact.viz import plot_trajectory, replay
@@ -282,6 +312,7 @@ def _write_outcome(name: str, task: str, out: Path, start: float, outcome: PlanO
                                   "status": "written",
                                   "seconds": time.perf_counter() - began}],
         "task_checks": outcome.task, "summary": outcome.summary,
+        "gait": None if gait is None else gait.to_dict(),
         "collisions": collisions}, indent=2))
     files.append(out / "summary.json")
     return [Path(f) for f in files]
