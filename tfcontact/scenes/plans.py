@@ -262,7 +262,8 @@ def run_plan(name: str | Path | Task, out_dir: Path | str, *, task: str | None =
 def gait_report(outcome: PlanOutcome, height: float = 0.01) -> GaitReport | None:
     """The gait of a plan with two contacts or more (`tfcontact.ocp.gait.name_gait`):
     which feet lift above `height` [m] together, each foot's side read from its place
-    relative to the base at the start; None without a trajectory or robot."""
+    relative to the base at the start; None without a trajectory or robot (or one whose
+    model does not fit the trajectory's q)."""
     import numpy as np
     import pinocchio as pin
 
@@ -271,7 +272,7 @@ def gait_report(outcome: PlanOutcome, height: float = 0.01) -> GaitReport | None
 
     traj, robot = outcome.trajectory, outcome.robot
     contacts = [] if traj is None else traj.robot.get("contacts", [])
-    if robot is None or len(contacts) < 2:
+    if robot is None or len(contacts) < 2 or robot.model.nq != traj.q.shape[1]:
         return None
     model, data = robot.model, robot.model.createData()
     pin.framesForwardKinematics(model, data, traj.q[0])
