@@ -358,6 +358,7 @@ def test_the_quadruped_jump_is_discovered_on_fixed_steps_and_resolved_with_its_k
     stages = plan_named(task).stages
     assert [s.path_rows for s in stages] == [(0, 1, 2, 3), (4, 5, 6, 7)]
     assert stages[1].options.contact_gap == 0.003
+    assert stages[1].options.end_standing  # all four feet down from the landing to T
 
 
 def test_the_biped_walk_task_builds_bolt_with_two_feet_in_the_plane():
