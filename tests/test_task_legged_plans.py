@@ -1,8 +1,8 @@
 """The shipped legged task files planned end to end (`tfcontact plan`): bolt's short walk
-from no contact schedule, solo12's jump and trot along the contact sequences their files
-give; each checked on Pinocchio's own foot placements. Kept apart from tests/test_task.py
-(the task layer's validation and small solves) so that pytest-xdist runs these long plans
-beside it on another worker."""
+and solo12's planar jump from no contact schedule, solo12's jump and trot along the
+contact sequences their files give; each checked on Pinocchio's own foot placements.
+Kept apart from tests/test_task.py (the task layer's validation and small solves) so that
+pytest-xdist runs these long plans beside it on another worker."""
 
 from __future__ import annotations
 
@@ -106,6 +106,54 @@ def test_solo12_jumps_along_its_given_contact_sequence_verified_and_clear(tmp_pa
     weight = pin.computeTotalMass(model) * 9.81
     last = int(np.flatnonzero(push)[-1])
     assert impulse == pytest.approx(weight * t[last] + momentum[last] - momentum[0], rel=2e-2)
+
+
+@pytest.mark.slow
+def test_solo12_in_the_plane_jumps_with_no_contact_schedule_verified_and_clear(tmp_path):
+    """`tfcontact plan quadruped-jump-planar` (quadruped-jump in the sagittal plane;
+    measured about 2 minutes): from the base reference the discovery finds a four-foot
+    jump, the stance re-solve along its stances makes the plan, which passes the
+    multi-contact reference, does its task and is clear. Checked here on Pinocchio's
+    foot and knee placements: all four feet off the ground together for 0.1 s in one
+    flight, down at the start and from the landing to T (`end_standing`), the knees at
+    least 25 mm up, the base ending 0.2 m forwards; the gait reported is a pronk."""
+    import json
+
+    import pinocchio as pin
+
+    from tfcontact.cli import main
+    from tfcontact.plan_format import load_trajectory
+    from tfcontact.robot import RobotSpec, load_robot
+
+    assert main(["plan", "quadruped-jump-planar", "--out", str(tmp_path), "--quiet"]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["success"] and summary["status"] == "converged", summary["summary"]
+    stages = {entry["stage"]: entry for entry in summary["stages"]}
+    assert stages["discover"]["ran"] and stages["stance re-solve"]["status"] == "converged"
+    assert stages["collision check"]["status"] == "clear"
+    assert summary["gait"] == {"name": "pronk", "groups": [
+        ["FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"]]}
+    trajectory = load_trajectory(tmp_path / "trajectory.npz")
+    assert trajectory.verification["passed"] and trajectory.task["passed"]
+    model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
+    data = model.createData()
+    legs = ("FL", "FR", "HL", "HR")
+    feet = [model.getFrameId(f"{leg}_FOOT") for leg in legs]
+    knees = [model.getFrameId(f"{leg}_KFE") for leg in legs]
+    heights, knee_heights = [], []
+    for q in trajectory.q:
+        pin.framesForwardKinematics(model, data, q)
+        heights.append([data.oMf[f].translation[2] - 0.016 for f in feet])
+        knee_heights.append([data.oMf[k].translation[2] for k in knees])
+    heights, t = np.array(heights), trajectory.clock
+    flying = np.all(heights > 0.01, axis=1)
+    assert t[flying].max() - t[flying].min() >= 0.1
+    assert np.all(np.diff(t[flying]) < 0.03)  # one flight, not two short ones
+    assert np.all(np.abs(heights[0]) < 1e-4)
+    landed = t > t[flying].max() + 0.06  # after both pairs' touchdowns
+    assert landed.sum() > 5 and np.abs(heights[landed]).max() < 1e-4
+    assert np.min(knee_heights) >= 0.025 - 1e-4
+    assert abs(trajectory.q[-1, 0] - 0.2) <= 0.05
 
 
 @pytest.mark.slow
