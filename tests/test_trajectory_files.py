@@ -551,3 +551,24 @@ def test_a_node_file_that_is_not_one_is_refused_with_the_fix(tmp_path):
     np.savez(tmp_path / "short.npz", **arrays)
     with pytest.raises(TrajectoryFileError, match="do not fit together"):
         load_resolved_plan(tmp_path / "short.npz")
+
+
+def test_a_failed_stance_plans_decreasing_node_times_are_repaired_a_solved_ones_refused():
+    """`stance_clock`: a failed re-solve's last iterate whose piece ran backwards (solo12's
+    planar jump from a perturbed start: nodes 0.451, 0.4509994, ..., 0.452) keeps each
+    node at the latest time so far and reports the drop, so its file is written; a
+    solved plan with such times is refused. Increasing times pass unchanged."""
+    from tfcontact.errors import InvalidInput
+    from tfcontact.plan_format import stance_clock
+
+    times = np.array([0.45, 0.451, 0.451, 0.4509994, 0.4509937, 0.452, 0.452, 0.5])
+    clock, drop = stance_clock(times, solved=False)
+    np.testing.assert_array_equal(clock, [0.45, 0.451, 0.451, 0.451, 0.451, 0.452, 0.452,
+                                          0.5])
+    assert drop == pytest.approx(0.451 - 0.4509937)  # the furthest a node lies behind
+    with pytest.raises(InvalidInput, match="node times decrease"):
+        stance_clock(times, solved=True)
+    fine = np.array([0.0, 0.1, 0.1, 0.2])
+    clock, drop = stance_clock(fine, solved=True)
+    np.testing.assert_array_equal(clock, fine)
+    assert drop == 0.0

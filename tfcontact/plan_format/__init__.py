@@ -19,6 +19,7 @@ from tfcontact.plan_format.adapters import (
     find_impacts,
     plan_summary,
     solver_record,
+    stance_clock,
     terrain_directions,
     trajectory_from_polished,
     trajectory_from_result,
@@ -55,6 +56,7 @@ __all__ = [
     "solver_record",
     "terrain_directions",
     "trajectory_from_polished",
+    "stance_clock",
     "trajectory_from_stances",
     "trajectory_from_result",
 ]

@@ -445,6 +445,28 @@ def trajectory_from_polished(
     )
 
 
+def stance_clock(times: np.ndarray, solved: bool) -> tuple[np.ndarray, float]:
+    """The clock of a stance plan's nodes (`StancePlan.t`) and how far [s] a node lay
+    behind the latest time before it, repaired (0: none). A failed solve's last iterate
+    need not hold its rows: in solo12's planar jump from a perturbed start a piece's step
+    length (a variable tied to its touchdown times) came out negative, and the failed plan
+    could not be written.
+    Such nodes keep the latest time so far, so the plan is saved with its failed status.
+
+    Raises:
+        InvalidInput: a solved plan's times decrease (its rows would not hold).
+    """
+    clock = np.asarray(times, dtype=float)
+    latest = np.maximum.accumulate(clock)
+    drop = float(np.max(latest - clock, initial=0.0))  # the furthest a node lies behind
+    if drop == 0.0:
+        return clock, 0.0
+    if solved:
+        raise InvalidInput(f"the solved stance plan's node times decrease (by {drop:.3g} s); "
+                           "its rows do not hold")
+    return latest, drop
+
+
 def trajectory_from_stances(
     plan: Any,
     cls: Any,
@@ -463,6 +485,11 @@ def trajectory_from_stances(
     s = 1. Forces and impulses in the world frame along `directions` (as for
     `trajectory_from_result`: per contact (n_w, T_w) or a function of q; default the
     ground of `scene["terrain"]`). `extras["closed"]`: which contacts are closed.
+    A failed plan whose node times decrease (its rows not holding) keeps each node at the
+    latest time so far, noted as `solver["clock_repaired"]` (the largest drop [s]).
+
+    Raises:
+        InvalidInput: a solved plan whose node times decrease.
     """
     from tfcontact.ocp.stances import node_values
     from tfcontact.timefreezing import FROZEN_RATE_TOL
@@ -478,7 +505,9 @@ def trajectory_from_stances(
     directions_at = directions if callable(directions) else (lambda _q: directions)
     values = node_values(plan, cls)
     n_q = cls.n_q
-    clock = np.asarray(plan.t, dtype=float)
+    clock, drop = stance_clock(plan.t, plan.solved)
+    if drop > 0:
+        solver = {**(solver or {}), "clock_repaired": drop}
     tau = clock + IMPACT_TAU * np.concatenate([[0], np.cumsum(np.diff(clock) == 0)])
 
     def world(local: np.ndarray) -> np.ndarray:
