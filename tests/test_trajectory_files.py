@@ -556,19 +556,26 @@ def test_a_node_file_that_is_not_one_is_refused_with_the_fix(tmp_path):
 def test_a_failed_stance_plans_decreasing_node_times_are_repaired_a_solved_ones_refused():
     """`stance_clock`: a failed re-solve's last iterate whose piece ran backwards (solo12's
     planar jump from a perturbed start: nodes 0.451, 0.4509994, ..., 0.452) keeps each
-    node at the latest time so far and reports the drop, so its file is written; a
-    solved plan with such times is refused. Increasing times pass unchanged."""
+    node at the latest time so far and reports how far behind it lay, so its file is
+    written; its impacts (tau's steps of IMPACT_TAU) are the nodes that repeat a time,
+    not the repaired ones. A solved plan with such times is refused. Increasing times
+    pass unchanged."""
     from tfcontact.errors import InvalidInput
     from tfcontact.plan_format import stance_clock
+    from tfcontact.plan_format.adapters import IMPACT_TAU
 
     times = np.array([0.45, 0.451, 0.451, 0.4509994, 0.4509937, 0.452, 0.452, 0.5])
-    clock, drop = stance_clock(times, solved=False)
+    clock, tau, drop = stance_clock(times, solved=False)
     np.testing.assert_array_equal(clock, [0.45, 0.451, 0.451, 0.451, 0.451, 0.452, 0.452,
                                           0.5])
     assert drop == pytest.approx(0.451 - 0.4509937)  # the furthest a node lies behind
+    # two touchdowns (0.451 and 0.452 repeated), none at the repaired nodes
+    np.testing.assert_allclose(tau - clock, IMPACT_TAU * np.array([0, 0, 1, 1, 1, 1, 2, 2]))
+    assert np.all(np.diff(tau) >= 0)
     with pytest.raises(InvalidInput, match="node times decrease"):
         stance_clock(times, solved=True)
     fine = np.array([0.0, 0.1, 0.1, 0.2])
-    clock, drop = stance_clock(fine, solved=True)
+    clock, tau, drop = stance_clock(fine, solved=True)
     np.testing.assert_array_equal(clock, fine)
+    np.testing.assert_allclose(tau, [0.0, 0.1, 0.1 + IMPACT_TAU, 0.2 + IMPACT_TAU])
     assert drop == 0.0

@@ -55,8 +55,8 @@ __all__ = [
     "stance_intervals",
     "solver_record",
     "terrain_directions",
-    "trajectory_from_polished",
     "stance_clock",
+    "trajectory_from_polished",
     "trajectory_from_stances",
     "trajectory_from_result",
 ]

@@ -423,8 +423,7 @@ def trajectory_from_polished(
     samples = node_samples(plan, cls)
     n_q = cls.n_q
     clock = np.asarray(plan.t, dtype=float)
-    impacts = np.concatenate([[0], np.cumsum(np.diff(clock) == 0)])
-    tau = clock + IMPACT_TAU * impacts
+    tau = _node_tau(clock, clock)
     normal = np.asarray(scene.get("terrain", {}).get("normal", GROUND_NORMAL), dtype=float)
     tangent = np.array([1.0, 0.0, 0.0])
 
@@ -445,26 +444,32 @@ def trajectory_from_polished(
     )
 
 
-def stance_clock(times: np.ndarray, solved: bool) -> tuple[np.ndarray, float]:
-    """The clock of a stance plan's nodes (`StancePlan.t`) and how far [s] a node lay
+def _node_tau(times: np.ndarray, clock: np.ndarray) -> np.ndarray:
+    """tau of a re-solved plan's nodes: `clock` plus `IMPACT_TAU` per impact passed, an
+    impact being a node that repeats the time of the node before it in `times` (the two
+    sides of a touchdown)."""
+    return clock + IMPACT_TAU * np.concatenate([[0], np.cumsum(np.diff(times) == 0)])
+
+
+def stance_clock(times: np.ndarray, solved: bool) -> tuple[np.ndarray, np.ndarray, float]:
+    """(clock, tau, drop) of a stance plan's nodes (`StancePlan.t`): the physical time,
+    the numerical time (`IMPACT_TAU` per touchdown passed) and how far [s] a node lay
     behind the latest time before it, repaired (0: none). A failed solve's last iterate
     need not hold its rows: in solo12's planar jump from a perturbed start a piece's step
     length (a variable tied to its touchdown times) came out negative, and the failed plan
-    could not be written.
-    Such nodes keep the latest time so far, so the plan is saved with its failed status.
+    could not be written. Such nodes keep the latest time so far, so the plan is saved
+    with its failed status; the impacts are those of `times` (a repaired node is none).
 
     Raises:
         InvalidInput: a solved plan's times decrease (its rows would not hold).
     """
-    clock = np.asarray(times, dtype=float)
-    latest = np.maximum.accumulate(clock)
-    drop = float(np.max(latest - clock, initial=0.0))  # the furthest a node lies behind
-    if drop == 0.0:
-        return clock, 0.0
-    if solved:
+    times = np.asarray(times, dtype=float)
+    latest = np.maximum.accumulate(times)
+    drop = float(np.max(latest - times, initial=0.0))  # the furthest a node lies behind
+    if drop > 0.0 and solved:
         raise InvalidInput(f"the solved stance plan's node times decrease (by {drop:.3g} s); "
                            "its rows do not hold")
-    return latest, drop
+    return latest, _node_tau(times, latest), drop
 
 
 def trajectory_from_stances(
@@ -486,7 +491,7 @@ def trajectory_from_stances(
     `trajectory_from_result`: per contact (n_w, T_w) or a function of q; default the
     ground of `scene["terrain"]`). `extras["closed"]`: which contacts are closed.
     A failed plan whose node times decrease (its rows not holding) keeps each node at the
-    latest time so far, noted as `solver["clock_repaired"]` (the largest drop [s]).
+    latest time so far, noted as `solver["clock_repaired"]` (`stance_clock`'s drop [s]).
 
     Raises:
         InvalidInput: a solved plan whose node times decrease.
@@ -505,10 +510,9 @@ def trajectory_from_stances(
     directions_at = directions if callable(directions) else (lambda _q: directions)
     values = node_values(plan, cls)
     n_q = cls.n_q
-    clock, drop = stance_clock(plan.t, plan.solved)
+    clock, tau, drop = stance_clock(plan.t, plan.solved)
     if drop > 0:
         solver = {**(solver or {}), "clock_repaired": drop}
-    tau = clock + IMPACT_TAU * np.concatenate([[0], np.cumsum(np.diff(clock) == 0)])
 
     def world(local: np.ndarray) -> np.ndarray:
         out = np.zeros((len(clock), n_c, 3))
