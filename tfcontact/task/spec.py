@@ -725,17 +725,19 @@ class Task:
                                    f"mirrored), got {other!r}")
         object.__setattr__(self, "ties", _frozen(ties))
         self._check_continuation(frames)
+        # the stance re-solve runs along given stances, or after a discovery of several
+        # contacts with `exact_resolve` (one contact: `polish`, not the stance re-solve)
+        stance_resolve = bool(self.stances) or (self.exact_resolve
+                                                and len(self.contacts) >= 2)
         resolve_only = [b.frame for b in self.bodies if not b.discovery]
-        if resolve_only and not self.stances and (
-                not self.exact_resolve or len(self.contacts) < 2):
+        if resolve_only and not stance_resolve:
             raise InvalidInput(
                 f"`bodies` {resolve_only} have `discovery = false`: only the stance "
                 "re-solve would keep them, which runs with `exact_resolve = true` and "
                 "several contacts, or along given `stances`; set those or drop "
                 "`discovery = false`")
         for name in ("resolve_elements", "resolve"):
-            if getattr(self, name) and not self.stances and (
-                    not self.exact_resolve or len(self.contacts) < 2):
+            if getattr(self, name) and not stance_resolve:
                 raise InvalidInput(
                     f"`{name}` sets the stance re-solve, which runs with "
                     "`exact_resolve = true` and several contacts, or along given "
