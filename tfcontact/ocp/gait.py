@@ -102,9 +102,9 @@ def name_gait(t: np.ndarray, gaps: np.ndarray, names: Sequence[str], offsets: np
     groups = group_swings(swings_of(t, gaps, height, touch))
     named = tuple(tuple(names[i] for i in g) for g in groups)
     front, left = offsets[:, 0] > 0, offsets[:, 1] > 0
-    legged = (len(names) == 4 and front.sum() == 2 and left.sum() == 2
-              and len({(bool(f), bool(s)) for f, s in zip(front, left, strict=True)}) == 4)
-    if not legged:
+    # four legs, one in each quadrant: two front, two hind, two left, two right
+    quadrants = {(bool(f), bool(s)) for f, s in zip(front, left, strict=True)}
+    if len(names) != 4 or len(quadrants) != 4:
         return GaitReport("", named)
     if not groups:
         return GaitReport("standing", named)
@@ -114,8 +114,8 @@ def name_gait(t: np.ndarray, gaps: np.ndarray, names: Sequence[str], offsets: np
     if sizes == {1}:
         return GaitReport("walk", named)
     if sizes == {2}:
-        kinds = {PAIR_GAITS.get((bool(front[a] == front[b]), bool(left[a] == left[b])))
-                 for a, b in groups}
+        kinds = {PAIR_GAITS[bool(front[a] == front[b]), bool(left[a] == left[b])]
+                 for a, b in groups}  # two legs differ in front/hind, side or both
         if len(kinds) == 1:
             return GaitReport(kinds.pop(), named)
     return GaitReport("mixed", named)
