@@ -18,6 +18,7 @@ from tfcontact.ocp.stances import (
     cone_rows,
     interior_weights,
     resolve_stances,
+    stall_stop,
     stance_schedule,
     swings,
 )
@@ -146,6 +147,25 @@ def test_a_capped_nlp_solved_again_from_its_iterate_converges():
         StanceOptions(lifted_forces=True, inverse_dynamics=True)
     with pytest.raises(InvalidInput, match="`barrier` must be one of adaptive, monotone"):
         StanceOptions(barrier="mehrotra")
+
+
+def test_a_stalled_nlp_stops_at_its_feasible_iterate():
+    """`stall_iterations`: with a tolerance no iterate reaches (1e-20), IPOPT without it
+    runs on to its own acceptable level (15 iterations there) or its cap; with it, it stops
+    after 3 feasible iterations of unchanged objective, as acceptable, at the closed forms
+    (the two drops' square NLP: every feasible point is its solution)."""
+    p, stances, guess, (t1, t2) = two_drops()
+    runs = {stall: resolve_stances(p, stances, StanceOptions(tol=1e-20, max_iter=60,
+                                                             stall_iterations=stall),
+                                   guess=guess, verbose=False)
+            for stall in (0, 3)}
+    assert runs[3].ipopt_status == "Solved_To_Acceptable_Level" and runs[3].solved
+    assert runs[3].iterations < runs[0].iterations
+    assert runs[3].stances[1].start == pytest.approx(t1, abs=1e-7)
+    assert runs[3].stances[2].start == pytest.approx(t2, abs=1e-7)
+    assert stall_stop(0) == {}
+    with pytest.raises(InvalidInput, match="stall_iterations"):
+        StanceOptions(stall_iterations=-1)
 
 
 @pytest.mark.parametrize(("inverse_dynamics", "element_derivatives", "lifted_forces",

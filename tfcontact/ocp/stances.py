@@ -108,6 +108,13 @@ and landed back 200 times at its start; with 1e-6 it stood, 3e-6 from the plan."
 RESTART_PUSH = 1e-9
 """A capped stance NLP solved again starts from its iterate with the barrier parameter
 and IPOPT's warm-start pushes at this value (as `tfcontact.mpcc.Ipopt.warm_start_push`)."""
+STALL_FEASIBILITY = 1e-6
+"""A stalled stance NLP (`StanceOptions.stall_iterations`) stops only while its
+constraints hold to this [the rows' units] and its complementarity to the barrier too."""
+STALL_OBJECTIVE_CHANGE = 1e-6
+"""... and while its objective changes by at most this, relative to max(1, |f|)."""
+STALL_DUAL_INFEASIBILITY = 1e-2
+"""... and while its dual infeasibility (the Lagrangian's gradient) is at most this."""
 SINGULAR_DELASSUS = 1e10
 """A stance whose Delassus matrix has a larger condition number is refused."""
 
@@ -239,6 +246,16 @@ class StanceOptions:
             file's `[resolve] discovery_residual` also stops its discovery there
             (`Homotopy.accept_residual`).
         tol, max_iter: IPOPT's.
+        stall_iterations: 0 (off), or n >= 1: IPOPT also stops, as solved to an acceptable
+            level, after n consecutive iterations at which the constraints hold to
+            `STALL_FEASIBILITY`, the objective changes by at most `STALL_OBJECTIVE_CHANGE`
+            (relative) and the dual infeasibility is at most `STALL_DUAL_INFEASIBILITY`: a
+            feasible plan whose optimality IPOPT cannot certify (its dual infeasibility
+            stalls at 1e-3 with the barrier at its floor, the Hessian regularised). The
+            plan's physics is the reference's to judge, not IPOPT's optimality: a planar
+            solo12's two-hop pronk crept with its objective falling 1e-6 per iteration from
+            iteration 450 to past 950 (`tol` 1e-8 never reached); its iterate at 450 was
+            verified (local defects <= 3.7e-4; benchmarks/legged.md).
         barrier: IPOPT's update of the barrier parameter (`mu_strategy`), "monotone"
             (IPOPT's default) or "adaptive". Measured on the trot's two swings
             (benchmarks/legged.md): the explicit form 109 iterations monotone against 140
@@ -291,6 +308,7 @@ class StanceOptions:
     discovery_residual: float | None = None
     tol: float = 1e-8
     max_iter: int = 3000
+    stall_iterations: int = 0
     barrier: str = "monotone"
     capped_restarts: int = 0
     step_error_restarts: int = 1
@@ -327,7 +345,7 @@ class StanceOptions:
         for name in ("nodes", "steps_per_node", "radau_stages", "max_iter", "budget",
                      "threads"):
             positive_int(getattr(self, name), name)
-        for name in ("capped_restarts", "step_error_restarts"):
+        for name in ("capped_restarts", "step_error_restarts", "stall_iterations"):
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool) or value < 0:
                 raise InvalidInput(f"`{name}` must be an integer >= 0, got {value!r}")
@@ -382,6 +400,18 @@ class Stance:
     closed: tuple[int, ...]
     start: float
     end: float
+
+
+def stall_stop(iterations: int) -> dict[str, float | int]:
+    """IPOPT's acceptable-level options that stop a stalled NLP after `iterations`
+    (`StanceOptions.stall_iterations`; 0: none, IPOPT's defaults)."""
+    if not iterations:
+        return {}
+    return {"acceptable_iter": iterations, "acceptable_tol": STALL_DUAL_INFEASIBILITY,
+            "acceptable_dual_inf_tol": STALL_DUAL_INFEASIBILITY,
+            "acceptable_constr_viol_tol": STALL_FEASIBILITY,
+            "acceptable_compl_inf_tol": STALL_FEASIBILITY,
+            "acceptable_obj_change_tol": STALL_OBJECTIVE_CHANGE}
 
 
 def stance_schedule(t: np.ndarray, gaps: np.ndarray, horizon: float, n_intervals: int,
@@ -1213,7 +1243,7 @@ def resolve_stances(problem: ContactProblem, stances: tuple[Stance, ...],
     plugin = {"print_time": False, "record_time": True, "expand": options.inverse_dynamics,
               **({} if repeated is None else repeated.derivative_options(options.threads))}
     ipopt = {"tol": options.tol, "max_iter": options.max_iter, "mu_strategy": options.barrier,
-             "print_level": 0, "sb": "yes"}
+             "print_level": 0, "sb": "yes", **stall_stop(options.stall_iterations)}
     iterations = 0
     build_time = time.perf_counter() - start
     evaluation_time = ipopt_time = 0.0

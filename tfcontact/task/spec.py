@@ -55,7 +55,8 @@ def _names(mapping: Mapping[str, Any], where: str) -> dict[str, Any]:
 RESOLVE_SETTINGS = frozenset({"cone_facets", "min_normal_force", "touchdown_speed",
                               "interior_rows", "contact_tolerance", "cone_margin",
                               "swing_middle", "discovery_residual", "lifted_forces",
-                              "barrier", "flight_gap", "contact_gap", "end_standing"})
+                              "barrier", "flight_gap", "contact_gap", "end_standing",
+                              "stall_iterations"})
 """The `tfcontact.ocp.StanceOptions` fields a task's `[resolve]` table may set."""
 
 
