@@ -1,6 +1,6 @@
-"""`tfcontact plan biped-step` end to end: its own file so that pytest-xdist runs it on
-the other worker beside tests/test_task_legged_plans.py (whose plans take about 20
-minutes in one process)."""
+"""`tfcontact plan biped-step` and `quadruped-gait` end to end (about 5 and 2.5 minutes):
+their own file so that pytest-xdist runs them on the other worker beside
+tests/test_task_legged_plans.py (whose plans take about 20 minutes in one process)."""
 
 from __future__ import annotations
 
@@ -56,3 +56,47 @@ def test_bolt_walks_up_the_step_with_no_contact_schedule_verified_and_clear(tmp_
     assert np.all(x[-1] > edge + 0.01)
     np.testing.assert_allclose(z[-1], top, atol=1e-3)
     assert abs(trajectory.q[-1, 0] - 0.5) <= 0.05
+
+
+@pytest.mark.slow
+def test_solo12_in_the_plane_moves_forwards_in_a_gait_it_finds_verified_and_clear(tmp_path):
+    """`tfcontact plan quadruped-gait` (measured about 2.5 minutes): from a base reference
+    that bobs twice and no contact schedule, the discovery finds a gait, the stance
+    re-solve makes the plan, which passes the multi-contact reference, does its task and
+    is clear of the ground and of itself; the gait reported is a two-hop pronk. Checked
+    here on Pinocchio's foot placements: two separate flights with all four feet off the
+    ground for at least 0.1 s each, the feet down at the start and at the end, the base
+    0.3 m forwards."""
+    import json
+
+    import pinocchio as pin
+
+    from tfcontact.cli import main
+    from tfcontact.plan_format import load_trajectory
+    from tfcontact.robot import RobotSpec, load_robot
+
+    assert main(["plan", "quadruped-gait", "--out", str(tmp_path), "--quiet"]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["success"] and summary["status"] == "converged", summary["summary"]
+    stages = {entry["stage"]: entry for entry in summary["stages"]}
+    assert stages["stance re-solve"]["status"] == "converged"
+    assert stages["collision check"]["status"] == "clear"
+    feet = ["FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"]
+    assert summary["gait"] == {"name": "pronk", "groups": [feet, feet]}
+    trajectory = load_trajectory(tmp_path / "trajectory.npz")
+    assert trajectory.verification["passed"] and trajectory.task["passed"]
+    model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
+    data = model.createData()
+    heights = []
+    for q in trajectory.q:
+        pin.framesForwardKinematics(model, data, q)
+        heights.append([data.oMf[model.getFrameId(f)].translation[2] - 0.016 for f in feet])
+    heights, t = np.array(heights), trajectory.clock
+    flying = np.all(heights > 0.01, axis=1)
+    starts = np.flatnonzero(flying[1:] & ~flying[:-1]) + 1
+    ends = np.flatnonzero(flying[:-1] & ~flying[1:])
+    assert len(starts) == len(ends) == 2, (starts, ends)
+    assert np.all(t[ends] - t[starts] >= 0.1)
+    assert np.all(np.abs(heights[0]) < 1e-4)
+    assert np.all(np.abs(heights[t > trajectory.clock[-1] - 0.1]) < 1e-4)
+    assert abs(trajectory.q[-1, 0] - 0.3) <= 0.05
