@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from legged_plans import frame_positions, planned
 
 
 @pytest.mark.slow
@@ -17,33 +18,11 @@ def test_bolt_walks_up_the_step_with_no_contact_schedule_verified_and_clear(tmp_
     Pinocchio's foot placements: both feet start on the ground, each rises at least twice
     more than 5 cm above what lies beneath it, and both end resting on the box's top
     (x past its edge, the sole at 5 cm); the base ends 0.5 m forwards."""
-    import json
-
-    import pinocchio as pin
-
-    from tfcontact.cli import main
-    from tfcontact.plan_format import load_trajectory
-    from tfcontact.robot import RobotSpec, load_robot
-
-    assert main(["plan", "biped-step", "--out", str(tmp_path), "--quiet"]) == 0
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["success"] and summary["status"] == "converged", summary["summary"]
-    stages = {entry["stage"]: entry for entry in summary["stages"]}
-    assert stages["stance re-solve"]["status"] == "converged"
-    assert stages["collision check"]["status"] == "clear"
-    trajectory = load_trajectory(tmp_path / "trajectory.npz")
-    assert trajectory.verification["passed"] and trajectory.task["passed"]
-    model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
-    data = model.createData()
+    _, trajectory, model = planned("biped-step", tmp_path)
+    assert trajectory.task["passed"]
     edge, top, radius = 0.35, 0.05, 0.016
-    soles = []  # (x, height of the sole above the ground plane) per foot and sample
-    for q in trajectory.q:
-        pin.framesForwardKinematics(model, data, q)
-        soles.append([[data.oMf[model.getFrameId(foot)].translation[0],
-                       data.oMf[model.getFrameId(foot)].translation[2] - radius]
-                      for foot in ("FL_FOOT", "FR_FOOT")])
-    soles = np.array(soles)
-    x, z = soles[..., 0], soles[..., 1]
+    feet = frame_positions(model, trajectory.q, ["FL_FOOT", "FR_FOOT"])
+    x, z = feet[..., 0], feet[..., 2] - radius  # the soles' x and height above the ground
     # the sole's clearance above the box's top past its edge, above the ground before it
     # (within the 1 cm rounding only an upper bound; no clearance is measured there)
     beneath = np.where(x > edge + 0.01, top, 0.0)
@@ -67,31 +46,12 @@ def test_solo12_in_the_plane_moves_forwards_in_a_gait_it_finds_verified_and_clea
     here on Pinocchio's foot placements: two separate flights with all four feet off the
     ground for at least 0.1 s each, the feet down at the start and at the end, the base
     0.3 m forwards."""
-    import json
-
-    import pinocchio as pin
-
-    from tfcontact.cli import main
-    from tfcontact.plan_format import load_trajectory
-    from tfcontact.robot import RobotSpec, load_robot
-
-    assert main(["plan", "quadruped-gait", "--out", str(tmp_path), "--quiet"]) == 0
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["success"] and summary["status"] == "converged", summary["summary"]
-    stages = {entry["stage"]: entry for entry in summary["stages"]}
-    assert stages["stance re-solve"]["status"] == "converged"
-    assert stages["collision check"]["status"] == "clear"
+    summary, trajectory, model = planned("quadruped-gait", tmp_path)
     feet = ["FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"]
     assert summary["gait"] == {"name": "pronk", "groups": [feet, feet]}
-    trajectory = load_trajectory(tmp_path / "trajectory.npz")
-    assert trajectory.verification["passed"] and trajectory.task["passed"]
-    model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
-    data = model.createData()
-    heights = []
-    for q in trajectory.q:
-        pin.framesForwardKinematics(model, data, q)
-        heights.append([data.oMf[model.getFrameId(f)].translation[2] - 0.016 for f in feet])
-    heights, t = np.array(heights), trajectory.clock
+    assert trajectory.task["passed"]
+    heights = frame_positions(model, trajectory.q, feet)[..., 2] - 0.016
+    t = trajectory.clock
     flying = np.all(heights > 0.01, axis=1)
     starts = np.flatnonzero(flying[1:] & ~flying[:-1]) + 1
     ends = np.flatnonzero(flying[:-1] & ~flying[1:])

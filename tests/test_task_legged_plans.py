@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from legged_plans import frame_positions, planned, summary_stages, trajectory_and_model
 
 
 @pytest.mark.slow
@@ -18,27 +19,14 @@ def test_biped_walk_short_steps_once_per_foot_verified_and_clear(tmp_path):
     passes the multi-contact reference, does its task and is clear of the ground. The
     feet's lift-offs, their reach and the base's end are checked here on Pinocchio's foot
     placements."""
-    import json
-
     import pinocchio as pin
 
-    from tfcontact.cli import main
-    from tfcontact.plan_format import load_trajectory
-    from tfcontact.robot import RobotSpec, load_robot
-
-    assert main(["plan", "biped-walk-short", "--out", str(tmp_path), "--quiet"]) == 0
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["success"] and summary["status"] == "converged", summary["summary"]
-    stages = {entry["stage"]: entry for entry in summary["stages"]}
-    assert stages["discover"]["ran"] and stages["stance re-solve"]["status"] == "converged"
-    assert stages["collision check"]["status"] == "clear"
+    summary, trajectory, model = planned("biped-walk-short", tmp_path)
+    assert summary_stages(summary)["discover"]["ran"]
     # the gait report: one foot at a time, both feet stepping (a planar biped: no name)
     assert summary["gait"]["name"] == ""
     assert all(len(group) == 1 for group in summary["gait"]["groups"])
     assert {g[0] for g in summary["gait"]["groups"]} == {"FL_FOOT", "FR_FOOT"}
-    trajectory = load_trajectory(tmp_path / "trajectory.npz")
-    assert trajectory.verification["passed"]
-    model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
     data = model.createData()
     heights, offsets = [], []  # the feet's lowest points above the ground; their x in
     for q in trajectory.q:     # the base's frame, per sample
@@ -68,25 +56,13 @@ def test_solo12_jumps_along_its_given_contact_sequence_verified_and_clear(tmp_pa
     on Pinocchio's foot placements and centre of mass: all four feet off the ground
     together for 0.1 s, down at both ends, and the push-off's forces carrying the
     robot's weight and its change of momentum."""
-    import json
-
     import pinocchio as pin
 
-    from tfcontact.cli import main
-    from tfcontact.plan_format import load_trajectory
-    from tfcontact.robot import RobotSpec, load_robot
-
-    assert main(["plan", "quadruped-jump-schedule", "--out", str(tmp_path), "--quiet"]) == 0
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["success"] and summary["status"] == "converged", summary["summary"]
-    stages = {entry["stage"]: entry for entry in summary["stages"]}
-    assert stages["stance solve"]["status"] == "converged" and "discover" not in stages
-    assert stages["collision check"]["status"] == "clear"
+    summary, trajectory, model = planned("quadruped-jump-schedule", tmp_path,
+                                         solve_stage="stance solve")
+    assert "discover" not in summary_stages(summary)
     assert summary["gait"] == {"name": "pronk", "groups": [
         ["FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"]]}
-    trajectory = load_trajectory(tmp_path / "trajectory.npz")
-    assert trajectory.verification["passed"]
-    model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
     data = model.createData()
     feet = [model.getFrameId(f"{leg}_FOOT") for leg in ("FL", "FR", "HL", "HR")]
     heights, momentum = [], []
@@ -117,35 +93,16 @@ def test_solo12_in_the_plane_jumps_with_no_contact_schedule_verified_and_clear(t
     foot and knee placements: all four feet off the ground together for 0.1 s in one
     flight, down at the start and from the landing to T (`end_standing`), the knees at
     least 25 mm up, the base ending 0.2 m forwards; the gait reported is a pronk."""
-    import json
-
-    import pinocchio as pin
-
-    from tfcontact.cli import main
-    from tfcontact.plan_format import load_trajectory
-    from tfcontact.robot import RobotSpec, load_robot
-
-    assert main(["plan", "quadruped-jump-planar", "--out", str(tmp_path), "--quiet"]) == 0
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["success"] and summary["status"] == "converged", summary["summary"]
-    stages = {entry["stage"]: entry for entry in summary["stages"]}
-    assert stages["discover"]["ran"] and stages["stance re-solve"]["status"] == "converged"
-    assert stages["collision check"]["status"] == "clear"
+    summary, trajectory, model = planned("quadruped-jump-planar", tmp_path)
+    assert summary_stages(summary)["discover"]["ran"]
     assert summary["gait"] == {"name": "pronk", "groups": [
         ["FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"]]}
-    trajectory = load_trajectory(tmp_path / "trajectory.npz")
-    assert trajectory.verification["passed"] and trajectory.task["passed"]
-    model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
-    data = model.createData()
+    assert trajectory.task["passed"]
     legs = ("FL", "FR", "HL", "HR")
-    feet = [model.getFrameId(f"{leg}_FOOT") for leg in legs]
-    knees = [model.getFrameId(f"{leg}_KFE") for leg in legs]
-    heights, knee_heights = [], []
-    for q in trajectory.q:
-        pin.framesForwardKinematics(model, data, q)
-        heights.append([data.oMf[f].translation[2] - 0.016 for f in feet])
-        knee_heights.append([data.oMf[k].translation[2] for k in knees])
-    heights, t = np.array(heights), trajectory.clock
+    heights = frame_positions(model, trajectory.q, [f"{leg}_FOOT" for leg in legs])[..., 2]
+    heights = heights - 0.016
+    knee_heights = frame_positions(model, trajectory.q, [f"{leg}_KFE" for leg in legs])[..., 2]
+    t = trajectory.clock
     flying = np.all(heights > 0.01, axis=1)
     assert t[flying].max() - t[flying].min() >= 0.1
     assert np.all(np.diff(t[flying]) < 0.03)  # one flight, not two short ones
@@ -165,10 +122,6 @@ def test_solo12_trots_along_its_given_contact_sequence_verified_and_clear(tmp_pa
     four feet are down at both ends, and the base ends 0.15 m forwards."""
     import dataclasses
 
-    import pinocchio as pin
-
-    from tfcontact.plan_format import load_trajectory
-    from tfcontact.robot import RobotSpec, load_robot
     from tfcontact.scenes.plans import run_plan
     from tfcontact.task import Waypoint, load_task, shipped_tasks
 
@@ -188,16 +141,11 @@ def test_solo12_trots_along_its_given_contact_sequence_verified_and_clear(tmp_pa
     assert report.success and report.status == "converged", report.summary
     gait = json.loads((tmp_path / "summary.json").read_text())["gait"]
     assert gait == {"name": "trot", "groups": [["FL_FOOT", "HR_FOOT"], ["FR_FOOT", "HL_FOOT"]]}
-    trajectory = load_trajectory(tmp_path / "trajectory.npz")
-    assert trajectory.verification["passed"] and trajectory.task["passed"]
-    model = load_robot(RobotSpec.from_dict(trajectory.robot)).model
-    data = model.createData()
-    frames = [model.getFrameId(f"{leg}_FOOT") for leg in ("FL", "FR", "HL", "HR")]
-    feet = []
-    for q in trajectory.q:
-        pin.framesForwardKinematics(model, data, q)
-        feet.append([data.oMf[f].translation.copy() for f in frames])
-    feet, t = np.array(feet), trajectory.clock  # (samples, foot, xyz)
+    trajectory, model = trajectory_and_model(tmp_path)
+    assert trajectory.task["passed"]
+    feet = frame_positions(model, trajectory.q, [f"{leg}_FOOT" for leg in ("FL", "FR", "HL",
+                                                                         "HR")])
+    t = trajectory.clock  # feet: (samples, foot, xyz)
     heights = feet[:, :, 2] - 0.016
     assert np.all(np.abs(heights[0]) < 1e-4) and np.all(np.abs(heights[-1]) < 1e-4)
     solved = trajectory.solver["stances"]  # the touchdowns at their solved times
