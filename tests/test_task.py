@@ -1202,14 +1202,16 @@ def test_a_task_sets_the_stance_resolve_in_its_resolve_table(tmp_path):
                     "min_normal_force = 1.5\ntouchdown_speed = 0.1\ninterior_rows = 1\n"
                     "contact_tolerance = 1e-6\ncone_margin = 0.9\ndiscovery_residual = 0.02\n"
                     "lifted_forces = true\nbarrier = \"adaptive\"\nflight_gap = 0.004\n"
-                    "contact_gap = 0.002\nend_standing = true\nstall_iterations = 15\n")
+                    "contact_gap = 0.002\nend_standing = true\nstall_iterations = 15\n"
+                    "max_iter = 700\n")
     options = task_plan(path).stages[-1].options
     assert (options.cone_facets, options.min_normal_force, options.touchdown_speed,
             options.interior_rows, options.contact_tolerance, options.cone_margin,
             options.discovery_residual, options.lifted_forces, options.barrier,
             options.flight_gap, options.contact_gap, options.end_standing,
-            options.stall_iterations
-            ) == (4, 1.5, 0.1, 1, 1e-6, 0.9, 0.02, True, "adaptive", 0.004, 0.002, True, 15)
+            options.stall_iterations, options.max_iter
+            ) == (4, 1.5, 0.1, 1, 1e-6, 0.9, 0.02, True, "adaptive", 0.004, 0.002, True, 15,
+                  700)
     assert task_plan(shipped).stages[-1].options.discovery_residual is None
     # the discovery stops at a failed NLP once the re-solve would take its last solved one
     assert task_plan(path).stages[0].build(None).options.homotopy.accept_residual == 0.02
@@ -1230,6 +1232,8 @@ def test_a_task_sets_the_stance_resolve_in_its_resolve_table(tmp_path):
         dataclasses.replace(task, resolve={"contact_gap": 0.006})
     with pytest.raises(InvalidInput, match="`end_standing` must be True or False"):
         dataclasses.replace(task, resolve={"end_standing": "yes"})
+    with pytest.raises(InvalidInput, match="`max_iter` must be"):
+        dataclasses.replace(task, resolve={"max_iter": 0})
     with pytest.raises(InvalidInput, match="`resolve` sets the stance re-solve"):
         dataclasses.replace(task, exact_resolve=False)
     with pytest.raises(InvalidInput, match="`resolve` must be a table"):

@@ -56,7 +56,7 @@ RESOLVE_SETTINGS = frozenset({"cone_facets", "min_normal_force", "touchdown_spee
                               "interior_rows", "contact_tolerance", "cone_margin",
                               "swing_middle", "discovery_residual", "lifted_forces",
                               "barrier", "flight_gap", "contact_gap", "end_standing",
-                              "stall_iterations"})
+                              "stall_iterations", "max_iter"})
 """The `tfcontact.ocp.StanceOptions` fields a task's `[resolve]` table may set."""
 
 
@@ -550,7 +550,8 @@ class Task:
             `lifted_forces`, `barrier`, and `flight_gap`, `contact_gap` (the gaps [m]
             at which the discovery's relaxed plan opens and closes a contact when its
             stances are read), `end_standing` (the contacts down after their last
-            touchdown stay down to T).
+            touchdown stay down to T), `stall_iterations`, `max_iter` (IPOPT's cap on
+            the re-solve: what a failed perturbed start costs in a sweep).
             What a plan of four 3-D feet needed is in benchmarks/legged.md.
         attempts: solves of the plan at most (default: the preset's): a plan that fails
             is solved again from its guess perturbed (`ContactSolverOptions.attempts`).
