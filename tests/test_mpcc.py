@@ -113,6 +113,45 @@ def test_a_stepping_stone_that_meets_the_tolerance_is_solved_again_to_tol():
     np.testing.assert_allclose(result.w, [1.0, 0.0], atol=1e-8)
 
 
+def test_the_homotopy_solves_each_nlp_with_the_blas_threads_it_is_given(monkeypatch):
+    """`Ipopt.blas_threads`: IPOPT's path depends on CasADi's OpenBLAS thread count, which
+    the environment sets (OMP_NUM_THREADS=1 sent biped-walk-short's discovery to a plan
+    short of its goal); each NLP runs with the count given, whatever the process had, and
+    the count is restored after; None leaves the process's own."""
+    from contextlib import contextmanager
+
+    import tfcontact.mpcc.solver as solver_module
+    from tfcontact.native import blas_threads, casadi_openblas
+
+    lib = casadi_openblas()
+    if lib is None:
+        pytest.skip("CasADi has no bundled OpenBLAS here")
+    seen = []
+    real = solver_module.blas_threads
+
+    @contextmanager
+    def recording(n):
+        with real(n):
+            seen.append(int(lib.openblas_get_num_threads()))
+            yield
+
+    monkeypatch.setattr(solver_module, "blas_threads", recording)
+    homotopy = Homotopy(tolerance=1e-6)
+    with blas_threads(1):  # as OMP_NUM_THREADS=1 leaves it
+        fixed = solve(corner_mpcc(), homotopy=homotopy)
+        assert seen == [2] * fixed.n_nlps  # the default
+        assert lib.openblas_get_num_threads() == 1
+        seen.clear()
+        solve(corner_mpcc(), homotopy=homotopy, nlp=Ipopt(blas_threads=None))
+        assert set(seen) == {1}
+    seen.clear()
+    with blas_threads(2):
+        solve(corner_mpcc(), homotopy=homotopy, nlp=Ipopt(blas_threads=1))
+        assert set(seen) == {1} and lib.openblas_get_num_threads() == 2
+    with pytest.raises(InvalidInput, match="`blas_threads` must be a positive integer"):
+        Ipopt(blas_threads=0)
+
+
 def test_warm_start_push_starts_later_nlps_from_the_last_multipliers():
     homotopy = Homotopy(tolerance=1e-6)
     cold = solve(corner_mpcc(), homotopy=homotopy)

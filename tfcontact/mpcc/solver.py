@@ -21,10 +21,11 @@ import casadi as ca
 import numpy as np
 
 from tfcontact import interrupt
-from tfcontact.errors import InvalidInput, SolveFailed, optional_positive
+from tfcontact.errors import InvalidInput, SolveFailed, optional_positive, positive_int
 from tfcontact.mpcc.derivatives import repeated_block_derivatives
 from tfcontact.mpcc.problem import Mpcc
 from tfcontact.mpcc.relaxation import Relaxation, Scholtes
+from tfcontact.native import blas_threads
 
 # IPOPT return statuses that mean the NLP was solved.
 _IPOPT_SOLVED = {"Solve_Succeeded", "Solved_To_Acceptable_Level"}
@@ -160,6 +161,14 @@ class Ipopt:
             the hopper tasks use it.
         threads: threads that evaluate the element derivatives (CasADi's thread map);
             the values do not depend on it.
+        blas_threads: threads of IPOPT's linear algebra (MUMPS on CasADi's OpenBLAS)
+            during each NLP (`tfcontact.native.blas_threads`; None: as the environment
+            sets it, OMP_NUM_THREADS or else the number of cores). IPOPT's path depends on
+            the rounding and the rounding on this count: biped-walk-short's discovery
+            with 1 thread (OMP_NUM_THREADS=1) took another path to a plan 5.8 cm short of
+            its goal in all three attempts; with 2, the count on the 2-core machines the
+            shipped plans were measured and tested on, it converged. Fixed, a plan follows
+            the same path whatever the environment and the number of cores.
         linear_solver: IPOPT's sparse symmetric indefinite solver, one of
             `LINEAR_SOLVERS`: "mumps" (default) or "spral" (STFC's open-source SSIDS, an
             alternative to HSL's solvers, which the wheel lacks; about 5x slower per
@@ -184,6 +193,7 @@ class Ipopt:
     intermediate_tol: float | None = None
     element_derivatives: bool = False
     threads: int = 1
+    blas_threads: int | None = 2
     linear_solver: str = "mumps"
     warm_start_push: float | None = None
 
@@ -206,6 +216,8 @@ class Ipopt:
         if isinstance(self.threads, bool) or not isinstance(self.threads, int) \
                 or self.threads < 1:
             raise InvalidInput(f"`threads` must be a positive integer, got {self.threads!r}")
+        if self.blas_threads is not None:
+            positive_int(self.blas_threads, "blas_threads")
         if self.warm_start_push is not None:
             if not (isinstance(self.warm_start_push, (int, float))
                     and not isinstance(self.warm_start_push, bool)
@@ -495,7 +507,8 @@ class MpccSolver:
         if warm:
             args.update(lam_x0=lam.x, lam_g0=lam.g)
         start = time.perf_counter()
-        with interrupt.guard():  # Ctrl-C stops IPOPT and the homotopy (tfcontact.interrupt)
+        # Ctrl-C stops IPOPT and the homotopy (tfcontact.interrupt)
+        with interrupt.guard(), blas_threads(self.nlp.blas_threads):
             sol = solver(**args)
         seconds = time.perf_counter() - start
         stats = solver.stats()

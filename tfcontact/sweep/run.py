@@ -49,8 +49,8 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
     for key, value in case.params:
         if GRID_PARAMETERS[key].level == "options":
             options = GRID_PARAMETERS[key].apply(options, value)
-    options = dataclasses.replace(options, nlp=dataclasses.replace(options.nlp,
-                                                                    threads=threads))
+    options = dataclasses.replace(options, nlp=dataclasses.replace(
+        options.nlp, threads=threads, blas_threads=threads))
     rng = np.random.default_rng([case.seed, case.start])
     start = target.perturbation(setup).sample(setup.problem, rng)
     problem = target.from_start(setup, task, problem_params, start)
