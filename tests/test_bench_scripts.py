@@ -117,6 +117,7 @@ def test_legged_bench_reports_a_whole_plan_stage_by_stage(load_script, monkeypat
     assert row["status"] == "converged"
     assert row["discover [s]"] >= 0.3 and row["re-solve [s]"] >= 0.1
     assert row["total [s]"] >= 0.4 and row["peak memory [GB]"] > 0
+    assert 0 <= row["CPU [s]"] < 0.3  # the waits sleep: wall time, no CPU
     assert row["discovery iterations"] == "-" == row["re-solve iterations"]
     lines = bench.markdown_table(bench.WHOLE_COLUMNS, [row]).splitlines()
     assert lines[0].count("|") == len(bench.WHOLE_COLUMNS) + 1
