@@ -310,6 +310,18 @@ def test_a_task_chooses_ipopts_barrier_update(task_file):
         load_task(_edited(path, '"adaptive"', '"quality"'))
 
 
+def test_a_task_states_the_blas_threads_of_its_discovery(task_file):
+    """`blas_threads`: the discovery's NLPs run IPOPT's BLAS on that many threads
+    (`Ipopt.blas_threads`; without it the library's 2), the path its plan was measured
+    on; the shipped 3-D jump states 1. A count below 1 is refused by name."""
+    assert build_task(load_task(task_file)).options.nlp.blas_threads == 2
+    path = _edited(task_file, "n_intervals = 20", "n_intervals = 20\nblas_threads = 1")
+    assert build_task(load_task(path)).options.nlp.blas_threads == 1
+    assert load_task(shipped_tasks()["quadruped-jump"]).blas_threads == 1
+    with pytest.raises(InvalidInput, match="`blas_threads` must be a positive integer"):
+        load_task(_edited(path, "blas_threads = 1", "blas_threads = 0"))
+
+
 def test_the_quadruped_jump_task_builds_solo12_with_four_3d_feet():
     """`quadruped-jump-fesd`: solo12 on a floating base (6 + 8 coordinates with HAA locked),
     four feet each with two tangents and the task's stick speed, standing on the ground at

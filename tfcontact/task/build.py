@@ -243,8 +243,8 @@ def build_task(task: Task) -> TaskSetup:
 
 def solver_options(task: Task) -> Any:
     """The discovery's `ContactSolverOptions`: the task's preset with the task's own
-    residual, stop residual, finite elements, discretisation, barrier and attempts (no
-    robot is loaded). A stance
+    residual, stop residual, finite elements, discretisation, barrier, BLAS threads and
+    attempts (no robot is loaded). A stance
     re-solve that follows a discovery stopped short (`[resolve] discovery_residual`) also
     stops it: its homotopy ends at a failed NLP once its last solved one is within that
     residual (`Homotopy.accept_residual`), the iterate the re-solve reads its stances from.
@@ -272,6 +272,9 @@ def solver_options(task: Task) -> Any:
     if task.barrier is not None:
         options = dataclasses.replace(options, nlp=dataclasses.replace(
             options.nlp, options={**options.nlp.options, "mu_strategy": task.barrier}))
+    if task.blas_threads is not None:
+        options = dataclasses.replace(options, nlp=dataclasses.replace(
+            options.nlp, blas_threads=task.blas_threads))
     if task.attempts is not None:
         options = dataclasses.replace(options, attempts=task.attempts)
     return options

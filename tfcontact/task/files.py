@@ -93,7 +93,7 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "complementarity_tolerance", "finite_elements", "friction_model", "periodic",
         "period", "period_from", "barrier", "resolve_elements", "resolve",
         "start_ranges", "attempts", "stances", "ties", "continuation", "discretization",
-        "stop_residual", "bodies"}
+        "stop_residual", "bodies", "blas_threads"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "clearance", "clearance_speed",
@@ -196,6 +196,7 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         stop_residual=top.get("stop_residual"),
         friction_model=top.get("friction_model", "cone"),
         barrier=top.get("barrier"),
+        blas_threads=top.get("blas_threads"),
         periodic=_listed(top.get("periodic", ()), "periodic"),
         period=top.get("period"), period_from=top.get("period_from", 0.0),
         ties=top.get("ties", {}),

@@ -529,6 +529,13 @@ class Task:
             IPOPT's cap with the fast preset's adaptive update and converged with the
             monotone one, while hopper-step and hopper-platform then failed
             (benchmarks/legged.md).
+        blas_threads: threads of IPOPT's BLAS in the discovery's NLPs
+            (`tfcontact.mpcc.Ipopt.blas_threads`; None: the library's 2). The homotopy's
+            path depends on the rounding and the rounding on this count: a discovery
+            measured on another count is stated with it, so that the plan follows the
+            path it was measured on whatever the machine (solo12's 3-D jump: with 1
+            thread 493 + 868 iterations and a verified plan; with 2 its NLPs at sigma
+            1e-2 and 1e-3 stopped at IPOPT's cap and the plan failed).
         exact_resolve: after the discovery, re-solve the plan exactly along the contact
             sequence it found (no relaxation, impacts at the found times), so that the
             written plan is the exact one and is verified as such: one planar frictional
@@ -611,6 +618,7 @@ class Task:
     stop_residual: float | None = None
     friction_model: str = "cone"
     barrier: str | None = None
+    blas_threads: int | None = None
     exact_resolve: bool = False
     resolve_elements: int | None = None
     resolve: Mapping[str, Any] = field(default_factory=dict)
@@ -705,6 +713,8 @@ class Task:
                                positive_int(self.finite_elements, "finite_elements"))
         if self.barrier is not None:
             one_of(self.barrier, BARRIERS, "barrier")
+        if self.blas_threads is not None:
+            positive_int(self.blas_threads, "blas_threads")
         one_of(self.discretization, DISCRETIZATIONS, "discretization")
         if not isinstance(self.exact_resolve, bool):
             raise InvalidInput(f"`exact_resolve` must be true or false, got "
