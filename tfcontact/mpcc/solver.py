@@ -166,9 +166,10 @@ class Ipopt:
             sets it, OMP_NUM_THREADS or else the number of cores). IPOPT's path depends on
             the rounding and the rounding on this count: biped-walk-short's discovery
             with 1 thread (OMP_NUM_THREADS=1) took another path to a plan 5.8 cm short of
-            its goal in all three attempts; with 2, the count on the 2-core machines the
-            shipped plans were measured and tested on, it converged. Fixed, a plan follows
-            the same path whatever the environment and the number of cores.
+            its goal in all three attempts; with 2, the count CI tests the plans with on
+            its 2-core machines, it converged. Fixed, a plan follows the same path
+            whatever the environment and the number of cores; a task measured on another
+            count states it (`Task.blas_threads`: quadruped-jump's 1).
         linear_solver: IPOPT's sparse symmetric indefinite solver, one of
             `LINEAR_SOLVERS`: "mumps" (default) or "spral" (STFC's open-source SSIDS, an
             alternative to HSL's solvers, which the wheel lacks; about 5x slower per
