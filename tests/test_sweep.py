@@ -124,6 +124,25 @@ def test_options_parameters_set_relaxation_and_discretisation():
         GRID_PARAMETERS["ordering"].check("colamd")
 
 
+def test_a_case_runs_ipopts_blas_on_no_more_threads_than_its_task_states():
+    """A case's NLPs run on the sweep's threads per case, but a task's stated
+    `blas_threads` (the count its discovery was measured on) is not raised by it: the
+    lower of the two. The shipped 3-D jump states 1; its homotopy stopped at IPOPT's cap
+    on 2."""
+    from tfcontact.mpcc import Ipopt
+    from tfcontact.sweep.run import with_case_threads
+    from tfcontact.task import load_task, shipped_tasks
+
+    stated = load_task(shipped_tasks()["quadruped-jump"]).blas_threads
+    assert stated == 1
+    nlp = with_case_threads(Ipopt(blas_threads=stated), 2)
+    assert (nlp.threads, nlp.blas_threads) == (2, 1)
+    nlp = with_case_threads(Ipopt(), 1)  # the library's 2 lowered to the case's 1
+    assert (nlp.threads, nlp.blas_threads) == (1, 1)
+    nlp = with_case_threads(Ipopt(blas_threads=None), 3)  # none stated: the case's count
+    assert (nlp.threads, nlp.blas_threads) == (3, 3)
+
+
 def test_hopper_target_plans_from_the_start_it_is_given():
     """A perturbed start's reference spline begins at that start (the task's later way
     points unchanged); `reference_from_start=False` keeps the task's first way point."""

@@ -214,9 +214,7 @@ class Ipopt:
                 math.isfinite(self.intermediate_tol) and self.intermediate_tol >= self.tol):
             raise InvalidInput(f"`intermediate_tol` must be a finite number >= `tol` "
                                f"({self.tol}), or None; got {self.intermediate_tol!r}")
-        if isinstance(self.threads, bool) or not isinstance(self.threads, int) \
-                or self.threads < 1:
-            raise InvalidInput(f"`threads` must be a positive integer, got {self.threads!r}")
+        positive_int(self.threads, "threads")
         if self.blas_threads is not None:
             positive_int(self.blas_threads, "blas_threads")
         if self.warm_start_push is not None:

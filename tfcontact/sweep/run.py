@@ -20,6 +20,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from tfcontact.errors import InvalidInput, positive_int
+from tfcontact.mpcc import Ipopt
 from tfcontact.sweep.report import chart
 from tfcontact.sweep.results import ERROR, CaseFileError, CaseResult, SweepResult
 from tfcontact.sweep.spec import GRID_PARAMETERS, SweepCase, SweepSpec
@@ -36,6 +37,15 @@ failed case can be examined without solving it again."""
 _SAME = ("plan", "task", "seed", "threads_per_case", "perturbation", "target")
 
 
+def with_case_threads(nlp: Ipopt, threads: int) -> Ipopt:
+    """IPOPT's settings for a case run on `threads` threads: the element derivatives on
+    that many, the BLAS on at most that many and no more than the task states (a task's
+    `blas_threads` is the count its discovery was measured on; quadruped-jump's 1 keeps
+    it on the path where its homotopy converges)."""
+    stated = threads if nlp.blas_threads is None else nlp.blas_threads
+    return dataclasses.replace(nlp, threads=threads, blas_threads=min(stated, threads))
+
+
 def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) -> CaseResult:
     """Solve one case (on a worker): build the plan with the case's grid point, draw its
     perturbed start, solve and verify it with `solve_contact`, then run the plan's later
@@ -49,8 +59,7 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
     for key, value in case.params:
         if GRID_PARAMETERS[key].level == "options":
             options = GRID_PARAMETERS[key].apply(options, value)
-    options = dataclasses.replace(options, nlp=dataclasses.replace(
-        options.nlp, threads=threads, blas_threads=threads))
+    options = dataclasses.replace(options, nlp=with_case_threads(options.nlp, threads))
     rng = np.random.default_rng([case.seed, case.start])
     start = target.perturbation(setup).sample(setup.problem, rng)
     problem = target.from_start(setup, task, problem_params, start)
