@@ -120,6 +120,20 @@ def _edited(task_file: Path, old: str, new: str) -> Path:
      r"`bodies` names a frame twice or a contact's frame: \['toe'\]"),
     ("n_intervals = 20\n", 'n_intervals = 20\nbodies = { frame = "body" }\n',
      r"`bodies` must be an array of tables"),
+    ("[start]", '[[apart]]\nframes = ["toe"]\ndistance = 0.1\n[start]',
+     r"`apart\[\].frames` must be two frame names, got \['toe'\]"),
+    ("[start]", '[[apart]]\nframes = ["toe", "toe"]\ndistance = 0.1\n[start]',
+     r"`apart\[\].frames` names 'toe' twice"),
+    ("[start]", '[[apart]]\nframes = ["toe", "body"]\ndistance = 0\n[start]',
+     r"`apart\[toe-body\].distance` must be finite > 0"),
+    ("[start]", '[[apart]]\nframes = ["toe", "body"]\ndistance = 0.1\ndiscovery = false\n'
+     '[start]', r"`apart` \['toe-body'\] have `discovery = false`: only the stance re-solve"),
+    ("[start]", '[[apart]]\nframes = ["toe", "body"]\ndistance = 0.1\n[[apart]]\n'
+     'frames = ["body", "toe"]\ndistance = 0.2\n[start]', r"`apart` names a pair twice"),
+    ("[start]", '[[apart]]\nframes = ["toe", "body"]\ndistnce = 0.1\n[start]',
+     r"`apart\[0\]` has unknown keys \['distnce'\]"),
+    ("n_intervals = 20\n", 'n_intervals = 20\napart = { frames = ["toe", "body"] }\n',
+     r"`apart` must be an array of tables"),
     ("control = 0.001", "control = 'cheap'", r"`costs.control` must be a number"),
     ("no_slip = true", "no_slip = true\nreach = { w = [-0.1, 0.1] }",
      r"`contacts\[toe\].reach` names axes \['w'\]; its axes: x, y, z"),
@@ -162,6 +176,10 @@ def test_task_file_errors_for_missing_and_broken_files(tmp_path):
      r"`bodies\[hip\].frame` is not a frame of the model; its frames: .*body"),
     ("[start]", '[[bodies]]\nframe = "body"\nradius = 0.4\n[start]',
      r"the start puts `bodies\[body\]` 0.08 m into the terrain"),
+    ("[start]", '[[apart]]\nframes = ["toe", "hip"]\ndistance = 0.05\n[start]',
+     r"`apart\[toe-hip\].frames` names 'hip', not a frame of the model; its frames: .*body"),
+    ("[start]", '[[apart]]\nframes = ["toe", "body"]\ndistance = 0.5\n[start]',
+     r"the start puts `apart\[toe-body\]`'s frames 0.2 m closer than its distance"),
 ])
 def test_build_errors_name_the_field(task_file, old, new, message):
     with pytest.raises(InvalidInput, match=message):
@@ -542,6 +560,60 @@ def test_bodies_are_kept_above_the_terrain_in_the_discovery_and_the_resolve():
     pin.framesForwardKinematics(model, data, q)
     height = data.oMf[model.getFrameId("base_link")].translation[2]
     assert float(gap(q)) == pytest.approx(height - box.top - 0.05, abs=1e-9)
+
+
+def test_pairs_of_frames_are_kept_apart_in_the_discovery_and_the_resolve():
+    """`apart`: a row |p_a - p_b| - distance >= 0 per pair after the bodies, with the
+    distance between Pinocchio's frame placements at random configurations of solo12's
+    floating base; kept by the stance re-solve, by the discovery unless `discovery =
+    false`; read from a task file's `[[apart]]`."""
+    import dataclasses
+
+    import pinocchio as pin
+
+    from tfcontact.task import ApartEntry, BodyEntry, discovery_path_rows, path_row_layout
+
+    task = load_task(shipped_tasks()["quadruped-jump-fesd"])
+    pairs = (ApartEntry(("FL_FOOT", "HL_FOOT"), 0.06),
+             ApartEntry(("FL_KFE", "HL_FOOT"), 0.05, discovery=False))
+    task = dataclasses.replace(task, bodies=(BodyEntry("FL_KFE", 0.025),), apart=pairs,
+                               exact_resolve=True)
+    setup = build_task(task)
+    path, cls = setup.problem.path, setup.problem.system.cls
+    total = path.expression.shape[0]
+    layout = path_row_layout(task)
+    assert len(layout) == total
+    assert [(r.kind, r.name, r.discovery, r.resolve) for r in layout[-3:]] == [
+        ("body", "FL_KFE", True, True), ("apart", "FL_FOOT-HL_FOOT", True, True),
+        ("apart", "FL_KFE-HL_FOOT", False, True)]
+    assert resolve_path_rows(task)[-2:] == (total - 2, total - 1)
+    assert discovery_path_rows(task) == tuple(range(total - 1))
+    np.testing.assert_array_equal(path.lower[-2:], [0.0, 0.0])
+    np.testing.assert_array_equal(path.upper[-2:], [np.inf, np.inf])
+    rows = ca.Function("apart", [cls.q], [path.expression[total - 2:]])
+    model, data = setup.robot.model, setup.robot.data
+    rng = np.random.default_rng(11)
+    for _ in range(5):
+        q = setup.problem.q0 + rng.uniform(-0.8, 0.8, cls.n_q)
+        pin.framesForwardKinematics(model, data, q)
+        place = {f: data.oMf[model.getFrameId(f)].translation
+                 for f in ("FL_FOOT", "HL_FOOT", "FL_KFE")}
+        expected = [np.linalg.norm(place["FL_FOOT"] - place["HL_FOOT"]) - 0.06,
+                    np.linalg.norm(place["FL_KFE"] - place["HL_FOOT"]) - 0.05]
+        np.testing.assert_allclose(np.asarray(rows(q)).ravel(), expected, atol=1e-9)
+
+
+def test_a_task_file_keeps_frames_apart(task_file):
+    path = _edited(task_file, "[start]", '[[apart]]\nframes = ["toe", "body"]\n'
+                   'distance = 0.1\n[start]')
+    task = load_task(path)
+    assert [(a.frames, a.distance, a.discovery) for a in task.apart] == [
+        (("toe", "body"), 0.1, True)]
+    setup = build_task(task)
+    cls = setup.problem.system.cls
+    row = ca.Function("row", [cls.q], [setup.problem.path.expression[-1]])
+    # the pogo stick's toe hangs 0.3 m below its body at the start (leg = 0.3)
+    assert float(row(setup.problem.q0)) == pytest.approx(0.3 - 0.1, abs=1e-9)
 
 
 def test_a_contacts_clearance_lifts_it_as_it_moves():

@@ -28,6 +28,7 @@ from tfcontact.task.files import (
 from tfcontact.task.presets import SOLVER_PRESETS
 from tfcontact.task.solve import plan
 from tfcontact.task.spec import (
+    ApartEntry,
     BodyEntry,
     ContactEntry,
     Continuation,
@@ -44,6 +45,7 @@ from tfcontact.task.spec import (
 __all__ = [
     "SHIPPED",
     "SOLVER_PRESETS",
+    "ApartEntry",
     "BodyEntry",
     "ContactEntry",
     "Continuation",

@@ -23,7 +23,7 @@ from scipy.interpolate import CubicSpline
 from tfcontact.errors import IncompatibleOptions, InvalidInput
 from tfcontact.ocp.stances import Stance
 from tfcontact.robot.terrain import Region, Terrain
-from tfcontact.task.spec import PlaneTerrain, Task
+from tfcontact.task.spec import ApartEntry, PlaneTerrain, Task
 
 UNBOUNDED = 1e20  # IPOPT's infinity: a URDF's 1.8e308 "no limit" means none
 RESTING_GAP = 1e-3  # [m] the largest end gap of a contact that `goals.end_height` rests
@@ -157,6 +157,7 @@ def build_task(task: Task) -> TaskSetup:
     to_base = robot.twin.frame_rotation(base).T
     body_gaps = dict(zip((b.frame for b in task.bodies), _body_gaps(task, robot, ground),
                          strict=True))
+    separations = {a.name: apart_distance(robot, a) for a in task.apart}
     path = None
     rows, row_upper, row_lower = [], [], []
     for row in path_row_layout(task):
@@ -182,6 +183,15 @@ def build_task(task: Task) -> TaskSetup:
                                    "into the terrain; raise the base in `start` or shrink "
                                    "its radius")
             rows.append(body_gaps[row.name])
+            low, high = 0.0, np.inf
+        elif row.kind == "apart":
+            start_distance = float(ca.Function("d", [cls.q], [separations[row.name]])(
+                x0[:len(names)]))
+            if start_distance < -1e-9:
+                raise InvalidInput(f"the start puts `apart[{row.name}]`'s frames "
+                                   f"{-start_distance:.4g} m closer than its distance; "
+                                   "change the start's joints or lower the distance")
+            rows.append(separations[row.name])
             low, high = 0.0, np.inf
         else:  # a tie: its position (axis "q") and velocity (axis "v") rows
             other = task.ties[row.name]
@@ -285,10 +295,11 @@ class PathRow:
     """One row of a built task's path constraint (`path_row_layout`).
 
     kind: "no_slip", "clearance" (a contact's rows that steer the discovery), "reach" (a
-    foot's range along a base axis), "body" (a body kept off the terrain) or "tie" (two
-    coordinates moving together); name: the contact's or body's frame, or the tie's
-    coordinate; axis: the reach row's base axis, or a tie's "q" or "v" row; discovery,
-    resolve: whether the discovery and the stance re-solve keep it."""
+    foot's range along a base axis), "body" (a body kept off the terrain), "apart" (two
+    points kept apart) or "tie" (two coordinates moving together); name: the contact's or
+    body's frame, the pair's "a-b", or the tie's coordinate; axis: the reach row's base
+    axis, or a tie's "q" or "v" row; discovery, resolve: whether the discovery and the
+    stance re-solve keep it."""
 
     kind: str
     name: str
@@ -300,9 +311,9 @@ class PathRow:
 def path_row_layout(task: Task) -> tuple[PathRow, ...]:
     """The rows of `build_task(task).problem.path` in order, from the task alone (no robot
     is loaded): each contact's no-slip and clearance rows, then every contact's reach rows,
-    the bodies, the ties. The stance re-solve keeps the reach and body rows (every closed
-    contact sticks there and the stances found are kept; the rest steer the discovery);
-    the discovery drops the bodies with `discovery = false`."""
+    the bodies, the pairs kept apart, the ties. The stance re-solve keeps the reach, body
+    and apart rows (every closed contact sticks there and the stances found are kept; the
+    rest steer the discovery); the discovery drops those with `discovery = false`."""
     rows: list[PathRow] = []
     for c in task.contacts:
         if c.no_slip:
@@ -313,6 +324,8 @@ def path_row_layout(task: Task) -> tuple[PathRow, ...]:
         rows += [PathRow("reach", c.frame, axis, resolve=True) for axis in c.reach]
     rows += [PathRow("body", b.frame, discovery=b.discovery, resolve=True)
              for b in task.bodies]
+    rows += [PathRow("apart", a.name, discovery=a.discovery, resolve=True)
+             for a in task.apart]
     for name in task.ties:
         rows += [PathRow("tie", name, "q"), PathRow("tie", name, "v")]
     return tuple(rows)
@@ -346,6 +359,18 @@ def _body_gaps(task: Task, robot: Any, ground: Any) -> list[Any]:
                                f"its frames: {', '.join(robot.twin.frame_names)}")
         gaps.append(ground.gap(robot.twin.frame_position(body.frame), body.radius))
     return gaps
+
+
+def apart_distance(robot: Any, pair: ApartEntry) -> ca.SX:
+    """|p_a - p_b| - distance [m] of an `ApartEntry` in the robot twin's q (>= 0: the
+    frames' origins are far enough apart). The norm is smoothed by 1e-12 m^2 under the
+    root so that its derivatives stay finite where the points would meet."""
+    for frame in pair.frames:
+        if frame not in robot.twin.frame_names:
+            raise InvalidInput(f"`apart[{pair.name}].frames` names {frame!r}, not a frame of "
+                               f"the model; its frames: {', '.join(robot.twin.frame_names)}")
+    a, b = (robot.twin.frame_position(f) for f in pair.frames)
+    return ca.sqrt(ca.sumsqr(a - b) + 1e-12) - pair.distance
 
 
 def task_stances(task: Task) -> tuple[Stance, ...]:

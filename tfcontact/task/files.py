@@ -39,6 +39,15 @@ Points of the robot that must not touch the terrain (`Task.bodies`) are kept abo
     radius = 0.025
     discovery = false             # kept by the stance re-solve only (default: both)
 
+Two points of the robot that must not meet (`Task.apart`: two legs swinging through each
+other in a flight) are kept apart, their frames' origins at least `distance` from each
+other:
+
+    [[apart]]
+    frames = ["FL_FOOT", "HL_FOOT"]
+    distance = 0.06               # the two spheres' radii summed [m]
+    discovery = false             # as for bodies
+
 The terrain is one plane (`[terrain]` with `height` and `normal`, default flat at 0) or
 primitives (`tfcontact.robot.Terrain`), each with the fields of its robot-layer class
 (ranges as [lo, hi], `inf` for an open end, y omitted in a planar scene):
@@ -71,6 +80,7 @@ from tfcontact.errors import IncompatibleOptions, InvalidInput
 from tfcontact.robot.terrain import Box, Hole, Plane, Region, Terrain
 from tfcontact.task.spec import (
     RESOLVE_SETTINGS,
+    ApartEntry,
     BodyEntry,
     ContactEntry,
     Continuation,
@@ -93,7 +103,7 @@ _TOP = {"name", "description", "robot", "contacts", "horizon", "n_intervals", "s
         "complementarity_tolerance", "finite_elements", "friction_model", "periodic",
         "period", "period_from", "barrier", "resolve_elements", "resolve",
         "start_ranges", "attempts", "stances", "ties", "continuation", "discretization",
-        "stop_residual", "bodies", "blas_threads"}
+        "stop_residual", "bodies", "apart", "blas_threads"}
 _ROBOT = {"source", "base", "locked"}
 _CONTACT = {"frame", "radius", "friction", "restitution", "no_slip", "no_slip_gain",
             "clearance", "clearance_speed",
@@ -163,6 +173,10 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
     if not isinstance(bodies, list):
         raise InvalidInput("`bodies` must be an array of tables: [[bodies]] with frame and "
                            "radius")
+    apart = top.get("apart", [])
+    if not isinstance(apart, list):
+        raise InvalidInput("`apart` must be an array of tables: [[apart]] with frames and "
+                           "distance")
     stances = top.get("stances", [])
     if not isinstance(stances, list):
         raise InvalidInput("`stances` must be an array of tables: [[stances]] with closed "
@@ -204,6 +218,9 @@ def task_from_dict(data: Mapping[str, Any], folder: Path | None = None) -> Task:
         bodies=tuple(BodyEntry(**_table(b, f"bodies[{k}]", {"frame", "radius", "discovery"},
                                         ("frame", "radius")))
                      for k, b in enumerate(bodies)),
+        apart=tuple(ApartEntry(**_table(a, f"apart[{k}]", {"frames", "distance", "discovery"},
+                                        ("frames", "distance")))
+                    for k, a in enumerate(apart)),
         stances=tuple(StanceEntry(**_table(e, f"stances[{k}]", {"closed", "start"},
                                            ("closed", "start")))
                       for k, e in enumerate(stances)),

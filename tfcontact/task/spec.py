@@ -227,6 +227,46 @@ class BodyEntry:
 
 
 @dataclass(frozen=True)
+class ApartEntry:
+    """Two points of the robot kept apart: the origins of `frames` stay at least
+    `distance` from each other at every stage of the discovery and of the stance re-solve
+    (a path row |p_a - p_b| - distance >= 0), e.g. two legs that must not swing through
+    each other in a flight. Spheres about two frames, `distance` the sum of their radii:
+    a body-to-body row that works for any robot, where bounds on a joint would keep the
+    legs apart only for the motions they were set for.
+
+    Args:
+        frames: two different frames of the robot model (knees, feet).
+        distance: the least distance between their origins [m] (> 0).
+        discovery: False: only the stance re-solve keeps the row (as `BodyEntry`'s).
+    """
+
+    frames: tuple[str, str]
+    distance: float
+    discovery: bool = True
+
+    def __post_init__(self) -> None:
+        frames = self.frames
+        if (isinstance(frames, str) or len(tuple(frames)) != 2
+                or not all(isinstance(f, str) and f for f in frames)):
+            raise InvalidInput(f"`apart[].frames` must be two frame names, got {frames!r}")
+        frames = tuple(frames)
+        if frames[0] == frames[1]:
+            raise InvalidInput(f"`apart[].frames` names {frames[0]!r} twice; name two frames")
+        object.__setattr__(self, "frames", frames)
+        object.__setattr__(self, "distance", finite(
+            self.distance, f"apart[{self.name}].distance", low=0.0, strict=True, unit="m"))
+        if not isinstance(self.discovery, bool):
+            raise InvalidInput(f"`apart[{self.name}].discovery` must be true or false, got "
+                               f"{self.discovery!r}")
+
+    @property
+    def name(self) -> str:
+        """The pair as one name, "a-b" (its row's name)."""
+        return "-".join(self.frames)
+
+
+@dataclass(frozen=True)
 class PlaneTerrain:
     """Flat ground: the half-space above a plane through height `height` (along `normal`).
 
@@ -588,6 +628,8 @@ class Task:
             guess did not find (benchmarks/legged.md).
         bodies: `BodyEntry`s, points of the robot kept off the terrain (knees, the base)
             in the discovery and the stance re-solve (`[[bodies]]` in a task file).
+        apart: `ApartEntry`s, pairs of points of the robot kept apart (two legs' knees
+            and feet) in the discovery and the stance re-solve (`[[apart]]`).
         description: a line for `tfcontact plan --list`.
     """
 
@@ -627,6 +669,7 @@ class Task:
     ties: Mapping[str, str] = field(default_factory=dict)
     continuation: Continuation | None = None
     bodies: tuple[BodyEntry, ...] = ()
+    apart: tuple[ApartEntry, ...] = ()
     description: str = ""
 
     def __post_init__(self) -> None:
@@ -653,6 +696,14 @@ class Task:
                                f"(contacts: {frames}); a body is kept off the terrain, a "
                                "contact may touch it: name each frame once")
         object.__setattr__(self, "bodies", bodies)
+        apart = tuple(self.apart)
+        if not all(isinstance(a, ApartEntry) for a in apart):
+            raise InvalidInput("`apart` must be ApartEntry's: [[apart]] with frames and "
+                               "distance")
+        pairs = [frozenset(a.frames) for a in apart]
+        if len(set(pairs)) != len(pairs):
+            raise InvalidInput(f"`apart` names a pair twice: {[a.name for a in apart]}")
+        object.__setattr__(self, "apart", apart)
         object.__setattr__(self, "horizon", finite(self.horizon, "horizon", low=0.0,
                                                    strict=True, unit="s"))
         object.__setattr__(self, "n_intervals", positive_int(self.n_intervals, "n_intervals"))
@@ -741,13 +792,15 @@ class Task:
         # contacts with `exact_resolve` (one contact: `polish`, not the stance re-solve)
         stance_resolve = bool(self.stances) or (self.exact_resolve
                                                 and len(self.contacts) >= 2)
-        resolve_only = [b.frame for b in self.bodies if not b.discovery]
-        if resolve_only and not stance_resolve:
-            raise InvalidInput(
-                f"`bodies` {resolve_only} have `discovery = false`: only the stance "
-                "re-solve would keep them, which runs with `exact_resolve = true` and "
-                "several contacts, or along given `stances`; set those or drop "
-                "`discovery = false`")
+        for key, resolve_only in (
+                ("bodies", [b.frame for b in self.bodies if not b.discovery]),
+                ("apart", [a.name for a in self.apart if not a.discovery])):
+            if resolve_only and not stance_resolve:
+                raise InvalidInput(
+                    f"`{key}` {resolve_only} have `discovery = false`: only the stance "
+                    "re-solve would keep them, which runs with `exact_resolve = true` and "
+                    "several contacts, or along given `stances`; set those or drop "
+                    "`discovery = false`")
         for name in ("resolve_elements", "resolve"):
             if getattr(self, name) and not stance_resolve:
                 raise InvalidInput(
