@@ -247,7 +247,7 @@ class ApartEntry:
 
     def __post_init__(self) -> None:
         frames = self.frames
-        if (isinstance(frames, str) or len(tuple(frames)) != 2
+        if (not isinstance(frames, list | tuple) or len(frames) != 2
                 or not all(isinstance(f, str) and f for f in frames)):
             raise InvalidInput(f"`apart[].frames` must be two frame names, got {frames!r}")
         frames = tuple(frames)
