@@ -181,7 +181,7 @@ def test_task_file_errors_for_missing_and_broken_files(tmp_path):
     ("[start]", '[[bodies]]\nframe = "body"\nradius = 0.4\n[start]',
      r"the start puts `bodies\[body\]` 0.08 m into the terrain"),
     ("[start]", '[[apart]]\nframes = ["toe", "hip"]\ndistance = 0.05\n[start]',
-     r"`apart\[toe-hip\].frames` names 'hip', not a frame of the model; its frames: .*body"),
+     r"`apart\[toe-hip\].frames`' 'hip' is not a frame of the model; its frames: .*body"),
     ("[start]", '[[apart]]\nframes = ["toe", "body"]\ndistance = 0.5\n[start]',
      r"the start puts `apart\[toe-body\]`'s frames 0.2 m closer than its distance"),
 ])

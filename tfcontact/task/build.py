@@ -175,23 +175,16 @@ def build_task(task: Task) -> TaskSetup:
                                - robot.twin.frame_position(base))
             rows.append(offset["xyz".index(row.axis)])
             low, high = entries[row.name].reach[row.axis]
-        elif row.kind == "body":
-            start_gap = float(ca.Function("g", [cls.q], [body_gaps[row.name]])(
-                x0[:len(names)]))
-            if start_gap < -1e-9:
-                raise InvalidInput(f"the start puts `bodies[{row.name}]` {-start_gap:.4g} m "
-                                   "into the terrain; raise the base in `start` or shrink "
-                                   "its radius")
-            rows.append(body_gaps[row.name])
-            low, high = 0.0, np.inf
-        elif row.kind == "apart":
-            start_distance = float(ca.Function("d", [cls.q], [separations[row.name]])(
-                x0[:len(names)]))
-            if start_distance < -1e-9:
-                raise InvalidInput(f"the start puts `apart[{row.name}]`'s frames "
-                                   f"{-start_distance:.4g} m closer than its distance; "
-                                   "change the start's joints or lower the distance")
-            rows.append(separations[row.name])
+        elif row.kind in ("body", "apart"):  # rows >= 0 that the start must meet already
+            kept = (body_gaps if row.kind == "body" else separations)[row.name]
+            short = -float(ca.Function("row", [cls.q], [kept])(x0[:len(names)]))
+            if short > 1e-9:
+                raise InvalidInput(
+                    f"the start puts `bodies[{row.name}]` {short:.4g} m into the terrain; "
+                    "raise the base in `start` or shrink its radius" if row.kind == "body"
+                    else f"the start puts `apart[{row.name}]`'s frames {short:.4g} m closer "
+                    "than its distance; change the start's joints or lower the distance")
+            rows.append(kept)
             low, high = 0.0, np.inf
         else:  # a tie: its position (axis "q") and velocity (axis "v") rows
             other = task.ties[row.name]
@@ -352,25 +345,26 @@ def _body_gaps(task: Task, robot: Any, ground: Any) -> list[Any]:
     """g(q) [m] of each of `task.bodies` against the terrain the contacts see (`ground`: a
     `Ground` half-space or a `Terrain`, each with the contacts' `gap`), in the robot
     twin's q."""
-    gaps = []
-    for body in task.bodies:
-        if body.frame not in robot.twin.frame_names:
-            raise InvalidInput(f"`bodies[{body.frame}].frame` is not a frame of the model; "
-                               f"its frames: {', '.join(robot.twin.frame_names)}")
-        gaps.append(ground.gap(robot.twin.frame_position(body.frame), body.radius))
-    return gaps
+    return [ground.gap(_frame_position(robot, body.frame, f"`bodies[{body.frame}].frame`"),
+                       body.radius) for body in task.bodies]
 
 
 def apart_distance(robot: Any, pair: ApartEntry) -> ca.SX:
     """|p_a - p_b| - distance [m] of an `ApartEntry` in the robot twin's q (>= 0: the
     frames' origins are far enough apart). The norm is smoothed by 1e-12 m^2 under the
     root so that its derivatives stay finite where the points would meet."""
-    for frame in pair.frames:
-        if frame not in robot.twin.frame_names:
-            raise InvalidInput(f"`apart[{pair.name}].frames` names {frame!r}, not a frame of "
-                               f"the model; its frames: {', '.join(robot.twin.frame_names)}")
-    a, b = (robot.twin.frame_position(f) for f in pair.frames)
+    a, b = (_frame_position(robot, f, f"`apart[{pair.name}].frames`' {f!r}")
+            for f in pair.frames)
     return ca.sqrt(ca.sumsqr(a - b) + 1e-12) - pair.distance
+
+
+def _frame_position(robot: Any, frame: str, where: str) -> ca.SX:
+    """The twin's position of `frame` in q, or InvalidInput naming `where` and the
+    model's frames."""
+    if frame not in robot.twin.frame_names:
+        raise InvalidInput(f"{where} is not a frame of the model; its frames: "
+                           f"{', '.join(robot.twin.frame_names)}")
+    return robot.twin.frame_position(frame)
 
 
 def task_stances(task: Task) -> tuple[Stance, ...]:
