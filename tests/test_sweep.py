@@ -814,6 +814,7 @@ def test_a_case_runs_a_failed_plan_again_whole_from_its_next_seed(tmp_path, monk
     (["monoped"], "plan `monoped` has stages that solve problems of their own"),
     (["hopper", "--friction", "-1"], "`friction` values must be finite and >= 0"),
     (["hopper", "--workers", "0"], "`n_workers` must be a positive integer, got 0"),
+    (["hopper", "--threads", "0"], "`threads_per_case` must be a positive integer, got 0"),
 ])
 def test_command_exits_2_on_bad_input(argv, message, capsys, tmp_path):
     parser = argparse.ArgumentParser()
@@ -822,6 +823,22 @@ def test_command_exits_2_on_bad_input(argv, message, capsys, tmp_path):
     assert args.func(args) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "never").exists()
+
+
+def test_command_threads_reach_the_cases(monkeypatch, tmp_path):
+    """`--threads 2` is each case's IPOPT threads (`SweepSpec.threads_per_case`, which
+    `solve_case` receives); without it 1."""
+    import tfcontact.sweep.run as run
+
+    seen = []
+    monkeypatch.setattr(run, "run_sweep", lambda spec, *a, **k: seen.append(spec) or 1 / 0)
+    parser = argparse.ArgumentParser()
+    add_sweep_parser(parser.add_subparsers())
+    for extra, threads in ((["--threads", "2"], 2), ([], 1)):
+        args = parser.parse_args(["sweep", "hopper", "--out", str(tmp_path), *extra])
+        with pytest.raises(ZeroDivisionError):
+            args.func(args)
+        assert seen[-1].threads_per_case == threads
 
 
 def test_the_parser_does_not_load_the_solver():

@@ -48,6 +48,11 @@ def add_sweep_parser(subparsers: Any) -> argparse.ArgumentParser:
                              "tfcontact); default: a local cluster")
     parser.add_argument("--workers", type=int, default=2,
                         help="the local cluster's worker processes, one case each (default 2)")
+    parser.add_argument("--threads", type=int, default=1,
+                        help="IPOPT's threads in each case, element derivatives and BLAS "
+                             "(default 1: one case per core); `--workers 1 --threads 2` "
+                             "runs each case as `tfcontact plan` does on 2 cores, on its "
+                             "rounding path")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.set_defaults(func=sweep_command)
     return parser
@@ -62,7 +67,7 @@ def sweep_command(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("out") / "sweeps" / args.plan
     try:
         spec = SweepSpec(plan=args.plan, starts=args.starts, task=args.task, seed=args.seed,
-                         grid=grid)
+                         grid=grid, threads_per_case=args.threads)
         result = run_sweep(spec, out, scheduler=args.scheduler, n_workers=args.workers,
                            progress=not args.quiet)
     except InvalidInput as error:

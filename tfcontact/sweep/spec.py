@@ -236,10 +236,14 @@ class SweepSpec:
         seed: seed of the start perturbations (see `SweepCase.seed`).
         grid: {key: values} over `GRID_PARAMETERS` ("friction", "a_n", "relaxation",
             "scheme"); every combination is run. Empty: the plan as it is.
-        threads_per_case: IPOPT's element-derivative threads in each case
-            (`Ipopt.threads`), replacing the plan's: a worker runs one case on one core,
-            so the plan's own 2 threads would have the cases contend for the cores
-            (the iterates do not depend on it: the hopper took 1088 iterations either way).
+        threads_per_case: IPOPT's threads in each case, replacing the plan's: the
+            element derivatives' (`Ipopt.threads`) and the BLAS's, no more than the task
+            states (`tfcontact.sweep.run.with_case_threads`). Default 1: a worker runs one
+            case on one core, so the plan's own 2 threads would have the cases contend
+            for the cores. The BLAS count changes the rounding and with it IPOPT's path
+            (quadruped-gait's start at x + 0.0137 failed its re-solve on 1 thread and was
+            verified on 2): one worker with 2 threads runs the cases as `tfcontact plan`
+            runs them on 2 cores.
     """
 
     plan: str
