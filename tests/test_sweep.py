@@ -809,6 +809,52 @@ def test_a_case_runs_a_failed_plan_again_whole_from_its_next_seed(tmp_path, monk
     assert "ran the whole plan again" in table
 
 
+def test_a_cases_discovery_drops_the_rows_only_the_stance_re_solve_keeps(tmp_path,
+                                                                         monkeypatch):
+    """A body kept by the stance re-solve only (`discovery = false`): the case's discovery
+    solves without its row, as the plan's `Discover` stage does, and its later stages get
+    the whole problem (before, the case's discovery kept the row: quadruped-gait's start
+    at x + 0.014 then took 33 + 56 IPOPT iterations where `tfcontact plan` took 31 + 42)."""
+    from types import SimpleNamespace as NS
+
+    from strider import write_strider
+
+    from tfcontact.ocp import contact
+    from tfcontact.scenes import pipeline
+    from tfcontact.sweep import results, run
+    from tfcontact.sweep.run import solve_case
+
+    path = write_strider(tmp_path)
+    path.write_text(path.read_text() + '[[bodies]]\nframe = "body"\nradius = 0.05\n'
+                    'discovery = false\n')
+    solved, later_got = [], []
+
+    def discovery(problem, options, *, first_seed, verbose):
+        solved.append(problem)
+        return NS(attempts=(), status="converged", success=True, problem=problem,
+                  ocp=NS(cost=1.0, residual=1e-4, success=True), options=options,
+                  verification=NS(end_state_deviation=0.0, summary=lambda: "ok"),
+                  timings={"build": 0.1, "solve": 1.0, "verify": 0.1},
+                  task=NS(to_dict=dict))
+
+    def later(plan, task, stages, found):
+        later_got.append(found)
+        return (NS(trajectory=None, status="converged", success=True, task={},
+                   summary="ok"), [])
+
+    monkeypatch.setattr(contact, "solve_contact", discovery)
+    monkeypatch.setattr(pipeline, "discovery_outcome", lambda result, setup: setup.problem)
+    monkeypatch.setattr(run, "run_later_stages", later)
+    monkeypatch.setattr(results, "failure_reason", lambda result: ("", ""))
+    target = sweep_target(str(path))
+    solve_case(target, "task", SweepCase((), 0, 3), threads=1)
+    whole = later_got[0]
+    assert whole.path.expression.numel() == solved[0].path.expression.numel() + 1
+    rows = sweep_target(str(write_strider(tmp_path))).setup("task", {}).problem.path
+    assert solved[0].path.expression.numel() == (0 if rows is None else
+                                                 rows.expression.numel())
+
+
 @pytest.mark.parametrize(("argv", "message"), [
     (["hopper", "--starts", "0"], "`starts` must be a positive integer, got 0"),
     (["monoped"], "plan `monoped` has stages that solve problems of their own"),

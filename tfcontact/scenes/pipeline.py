@@ -120,6 +120,11 @@ class Stage(ABC):
         others); default: unchanged."""
         return self
 
+    def solved_problem(self, problem: ContactProblem) -> ContactProblem:
+        """The problem this stage solves of the plan's `problem` (a sweep's case solves
+        it from its own start); default the problem itself."""
+        return problem
+
 
 @dataclass(frozen=True)
 class Discover(Stage):
@@ -158,7 +163,7 @@ class Discover(Stage):
 
         setup = self.build(given.task)
         robot, options = setup.robot, setup.options
-        problem = kept_path_rows(setup.problem, self.path_rows)
+        problem = self.solved_problem(setup.problem)
         if given.attempts is not None:
             options = dataclasses.replace(options, attempts=given.attempts)
         if given.verbose:
@@ -177,6 +182,10 @@ class Discover(Stage):
         result = solve_continued(problem, options, before, self.continue_sigma,
                                  verbose=given.verbose)
         return discovery_outcome(result, setup)
+
+    def solved_problem(self, problem: ContactProblem) -> ContactProblem:
+        """The plan's problem with only the path rows the discovery keeps (`path_rows`)."""
+        return kept_path_rows(problem, self.path_rows)
 
 
 def solve_continued(problem: ContactProblem, options: ContactSolverOptions,

@@ -75,8 +75,9 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
     from tfcontact.scenes.pipeline import discovery_outcome
 
     stages = tuple(s.with_threads(threads) for s in target.later_stages(task))
+    discovered = target.discovery_problem(task, problem)
     if not stages:
-        result = solve_contact(problem, options, verbose=False)
+        result = solve_contact(discovered, options, verbose=False)
         record = CaseResult.from_contact(case, target.name, task, start, result,
                                          time.perf_counter() - started,
                                          cpu_time=time.process_time() - cpu)
@@ -93,7 +94,7 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
 
     def run_once(seed: int) -> tuple:
         began = time.perf_counter()
-        result = solve_contact(problem, options, first_seed=seed, verbose=False)
+        result = solve_contact(discovered, options, first_seed=seed, verbose=False)
         results.append(result)
         found = discovery_outcome(result, dataclasses.replace(setup, problem=problem))
         entry = {"stage": "discover", "status": result.status, "ran": True,

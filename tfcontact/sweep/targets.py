@@ -7,7 +7,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -69,6 +69,11 @@ class SweepTarget(ABC):
         """The plan's first stage when it solves along a contact sequence given as data
         instead of a discovery (a case runs it on its perturbed start), else None."""
         return None
+
+    def discovery_problem(self, task: str, problem: Any) -> Any:
+        """The problem a case's discovery solves of its `ContactProblem` (default: all of
+        it)."""
+        return problem
 
 
 HOPPER_PERTURBATION = Perturbation((
@@ -205,6 +210,12 @@ class PlanTarget(SweepTarget):
 
     def given_sequence(self, task: str) -> GivenStances | None:
         return plan_named(self.name).given_sequence
+
+    def discovery_problem(self, task: str, problem: Any) -> Any:
+        # as the plan's discovery stage states it: without the rows only its stance
+        # re-solve keeps (`[[bodies]] discovery = false`), which the case's later stages
+        # take from the whole problem
+        return plan_named(self.name).stages_for(task)[0].solved_problem(problem)
 
     def description(self) -> dict:
         from tfcontact.scenes.plans import PLANS
