@@ -241,9 +241,8 @@ class SweepSpec:
             states (`tfcontact.sweep.run.with_case_threads`). Default 1: a worker runs one
             case on one core, so the plan's own 2 threads would have the cases contend
             for the cores. The BLAS count changes the rounding and with it IPOPT's path
-            (quadruped-gait's start at x + 0.0137 failed its re-solve on 1 thread and was
-            verified on 2): one worker with 2 threads runs the cases as `tfcontact plan`
-            runs them on 2 cores.
+            (`tfcontact.native.blas_threads`): one worker with 2 threads runs the cases as
+            `tfcontact plan` runs them on 2 cores.
     """
 
     plan: str
