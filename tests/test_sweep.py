@@ -249,6 +249,12 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
         "nlp_failed", False, False)
     assert failed.failure_kind == "stance re-solve: nlp_failed"
     assert failed.failure == "task: all goals met"  # no line says FAILED: the last one
+    # the plan's goals replace the discovery's, which stay on record beside them
+    discovery_task = {"status": "goal_missed", "passed": False, "checks": []}
+    planned = dataclasses.replace(found, extra={**found.extra, "task": discovery_task})
+    recorded = planned.after_stages(outcome, stages).extra
+    assert (recorded["task"], recorded["discovery_task"]) == ({}, discovery_task)
+    assert "discovery_task" not in failed.extra  # a record without a discovery's goals
     assert (failed.iterations, failed.objective, failed.end_state_deviation) == (3800, 3.2, 0.7)
     # the re-solve's verdict, as `StancePlan.summary` words it
     assert failed.verification == "stances: verification PASSED (multi-contact): ..."

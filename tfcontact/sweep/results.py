@@ -183,7 +183,8 @@ class CaseResult:
         """This discovery's record with the outcome of the plan's later stages (a
         `PlanOutcome`, collisions checked): its status, success, cost and end-state
         deviation; the iterations add up; `extra["stages"]` has each stage's name, status,
-        iterations and seconds (the discovery's figures stay in `attempts`)."""
+        iterations and seconds (the discovery's figures stay in `attempts`), `extra["task"]`
+        the plan's goals measured, `extra["discovery_task"]` its last discovery's."""
         trajectory = outcome.trajectory
         solver = {} if trajectory is None else trajectory.solver
         verification = {} if trajectory is None else trajectory.verification
@@ -210,7 +211,11 @@ class CaseResult:
             verification=next((line for line in reversed(lines) if any(
                 verdict in line for verdict in ("verification PASSED",
                                                 "verification FAILED"))), ""),
-            extra={**self.extra, "stages": stages, "task": outcome.task},
+            # the plan's goals replace the discovery's, which stay beside them (whether a
+            # failed re-solve followed a relaxed plan that met the task: benchmarks/sweeps)
+            extra={**self.extra, "stages": stages, "task": outcome.task,
+                   **({"discovery_task": self.extra["task"]} if "task" in self.extra
+                      else {})},
             trajectory=trajectory)
 
     @classmethod
