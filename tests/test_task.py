@@ -1492,7 +1492,7 @@ def test_a_standing_starts_kick_is_taken_by_its_contacts(monkeypatch, tmp_path):
     captured = {}
 
     def capture(plan, tolerance, deviation, defects, reference_end, notes, replay_end,
-                stopped=None):
+                stopped=None, parted=None):
         captured.update(x0=plan.x0, u=plan.controls, replay_end=replay_end)
         return True, 0.0, float("nan")
 
@@ -1533,7 +1533,7 @@ def test_a_stance_plans_stopped_replay_is_handed_over_with_replays_to_each_bound
     captured = {}
 
     def capture(plan, tolerance, deviation, defects, reference_end, notes, replay_end,
-                stopped=None):
+                stopped=None, parted=None):
         captured.update(plan=plan, deviation=deviation, stopped=stopped)
         return True, 0.0, float("nan")
 

@@ -1,8 +1,9 @@
-"""The end-state check of an open-loop replay that stopped before T (`departure_check`),
-on the closed form of an unstable system: the linearised inverted pendulum
-q'' = lambda^2 q, whose equilibrium q = v = 0 is the plan. A replay started with a
-velocity error e runs away as q = e sinh(lambda t) / lambda, v = e cosh(lambda t); a
-replay from (q0, v0) is at q0 cosh + v0 / lambda sinh, q0 lambda sinh + v0 cosh."""
+"""The end-state check of an open-loop replay that stopped before T, or whose kicked
+replays stop before T (`departure_check`), on the closed form of an unstable system: the
+linearised inverted pendulum q'' = lambda^2 q, whose equilibrium q = v = 0 is the plan. A
+replay started with a velocity error e runs away as q = e sinh(lambda t) / lambda,
+v = e cosh(lambda t); a replay from (q0, v0) is at q0 cosh + v0 / lambda sinh,
+q0 lambda sinh + v0 cosh."""
 
 from types import SimpleNamespace
 
@@ -116,3 +117,36 @@ def test_a_replay_that_stopped_before_its_first_sample_passed_no_boundary():
     passed, amplification, notes = check(stopped, (1e-5,) * N)
     assert not passed and np.isnan(amplification)
     assert "at each of the 0 control-interval boundaries" in notes[0]
+
+
+def test_a_replay_that_ran_to_t_is_judged_where_it_left_when_its_kicked_replays_stop():
+    """The replay with velocity error 1e-5 runs to T = 1 s, 1e-5 cosh(12) = 0.81 from the
+    plan; the kicked replays to T stop (a chatter the unkicked one escaped), so the
+    amplification to T is not measured. Given the replay at the boundaries before T
+    (`parted`), the plan is judged at t = 0.8 s, where it left: as for a replay that
+    stopped, 7382 x 8e-5 reaches 0.074 and it passes; with defects of 1e-9 it fails;
+    without `parted` it fails as before, the amplification not measured."""
+    error = np.array([0.0, 1e-5])
+    end = pendulum(PLAN.x0 + error, 1.0)
+
+    def kicked_to_t_stops(x0):
+        raise SolveFailed("kicked multi-contact replay stopped: max_events")
+
+    def judged(defects, parted):
+        notes: list[str] = []
+        passed, _, amplification = end_state_check(
+            PLAN, TOLERANCE, float(np.max(np.abs(end))), defects, end, notes,
+            kicked_to_t_stops, parted=parted)
+        return passed, amplification, notes
+
+    passed, amplification, notes = judged((1e-5,) * N, stopped_at(1.0, 1e-5))
+    assert passed and amplification == pytest.approx(np.cosh(RATE * 0.8), rel=1e-9)
+    assert len(notes) == 1 and notes[0].startswith("open-loop replay 8.14e-01 from the plan")
+    assert ("kicked start velocities stopped before T, so the plan is judged where the "
+            "open-loop replay left it: 7.38e-02 from it at t = 0.8 s (boundary 8)") in notes[0]
+    assert "passes on the local defects" in notes[0]
+    passed, amplification, notes = judged((1e-9,) * N, stopped_at(1.0, 1e-5))
+    assert not passed and "does not account for the deviation" in notes[0]
+    passed, amplification, notes = judged((1e-5,) * N, None)
+    assert not passed and np.isnan(amplification)
+    assert "the amplification is not measured and the end-state check fails" in notes[0]

@@ -1317,8 +1317,9 @@ def verify_stances(problem: ContactProblem, stances: tuple[Stance, ...], t: np.n
     """The checks of a stance plan given by its arrays: the multi-contact reference
     replays the controls open loop from the start and restarts on each control interval
     from the plan's state (local defects; an open-loop unstable plan passes on them with
-    the kicked replay's amplification, `end_state_check`; a replay that stopped is judged
-    where it left the plan, `departure_check`); the gaps at the nodes; the
+    the kicked replay's amplification, `end_state_check`; a replay that stopped, or whose
+    kicked replays stop on their way to T, is judged where it left the plan,
+    `departure_check`); the gaps at the nodes; the
     closed contacts' forces in their cones (recomputed from the nodes' states and
     controls) and the node times non-decreasing up to the horizon."""
     options = options or StanceOptions()
@@ -1365,7 +1366,7 @@ def verify_stances(problem: ContactProblem, stances: tuple[Stance, ...], t: np.n
             raise SolveFailed(f"kicked multi-contact replay stopped: {kicked.message}", kicked)
         return kicked.final_state()
 
-    stopped = None
+    stopped = parted = None
     if sim.success:
         deviation = sim.deviation_at(horizon, boundary_states[-1])
         reference_end = sim.final_state()
@@ -1373,6 +1374,8 @@ def verify_stances(problem: ContactProblem, stances: tuple[Stance, ...], t: np.n
         method = (f"event-driven multi-contact reference (DOP853, contact LCPs, inelastic "
                   f"frictional impacts), {len(times)} impacts at t = {times} s, "
                   f"{len(sim.events)} contact-mode changes")
+        # where it left the plan, should a kicked replay to T stop (`end_state_check`)
+        parted = stopped_replay(sim, replayed, replay_to)
     else:
         deviation, reference_end = math.inf, None
         method = "event-driven multi-contact reference (stopped)"
@@ -1382,7 +1385,7 @@ def verify_stances(problem: ContactProblem, stances: tuple[Stance, ...], t: np.n
 
     end_ok, defect_sum, amplification = end_state_check(
         replayed, options.end_state_tolerance, deviation, defects, reference_end, notes,
-        lambda start: replay_to(start, n_int), stopped)
+        lambda start: replay_to(start, n_int), stopped, parted)
     min_gap = float(np.min(np.asarray(dyn.gaps(x.T))))
     # the closed contacts' forces at both ends of each segment between two nodes
     starts = np.array([s.start for s in stances])
