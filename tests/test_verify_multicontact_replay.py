@@ -150,3 +150,17 @@ def test_replay_options_are_checked():
     # The simulator's own velocity tolerance (1e-7 m/s): restarts inside the ground that
     # separate slightly land back at their depth (no event cap, test_verify_multicontact).
     assert MultiContactReplay().simulation == MultiContactOptions()
+
+
+def test_a_replay_that_ran_to_t_is_handed_over_at_its_boundaries(pushed_box):
+    """A replay that ran to T comes with itself at the boundaries before T (`parted`:
+    where `end_state_check` judges the plan should the kicked replays to T stop): its
+    deviation from the plan at each (the plan followed: below 1e-5), and its `replay_to`
+    from the start runs to a boundary's state."""
+    outcome = MultiContactReplay().run(pushed_box, VerifyOptions().gap_tolerance, [])
+    parted = outcome.parted
+    assert outcome.stopped is None and parted is not None
+    assert len(parted.deviations) == N_INTERVALS and max(parted.deviations) < 1e-5
+    k = N_INTERVALS - 1
+    np.testing.assert_allclose(parted.replay_to(pushed_box.replayed().x0, k),
+                               parted.states[k], atol=1e-7)

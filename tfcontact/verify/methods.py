@@ -72,6 +72,9 @@ class ReplayOutcome:
             (`end_state_check`); None: the exact-impact reference's.
         stopped: the independent replay as far as it got, where it stopped before T
             (`end_state_check` judges it where it left the plan).
+        parted: a replay that ran to T at the boundaries before T, where
+            `end_state_check` judges it should its kicked replays to T stop (None: such a
+            replay fails).
     """
 
     deviation: float
@@ -80,6 +83,7 @@ class ReplayOutcome:
     local_defects: tuple[float, ...] = ()
     replay_end: ReplayEnd | None = None
     stopped: StoppedReplay | None = None
+    parted: StoppedReplay | None = None
 
 
 class Replay(ABC):
@@ -237,7 +241,8 @@ class MultiContactReplay(Replay):
 
     def stopped(self, plan: TimeFreezingPlan, sim: MultiContactSimulation,
                 gap_tolerance: float) -> StoppedReplay:
-        """`sim`, an open-loop replay that stopped, as `end_state_check` reads it."""
+        """`sim`, an open-loop replay that stopped (or ran to T: its boundaries before T),
+        as `end_state_check` reads it."""
         return stopped_replay(sim, plan.replayed(), self.replay_to(plan, gap_tolerance))
 
     def outcome(self, plan: TimeFreezingPlan, sim: MultiContactSimulation,
@@ -249,7 +254,8 @@ class MultiContactReplay(Replay):
                   f"{len(sim.events)} contact-mode changes")
         return ReplayOutcome(sim.deviation_at(plan.horizon, plan.end_state), method,
                              reference_end=sim.final_state(), local_defects=defects,
-                             replay_end=self.replay_end(plan, gap_tolerance))
+                             replay_end=self.replay_end(plan, gap_tolerance),
+                             parted=self.stopped(plan, sim, gap_tolerance))
 
     @staticmethod
     def stop_note(sim: MultiContactSimulation) -> str:

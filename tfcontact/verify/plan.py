@@ -236,7 +236,7 @@ def check_time_freezing_plan(plan: TimeFreezingPlan,
                   "clock": options.clock_tolerance}
     end_state_ok, defect_sum, amplification = end_state_check(
         plan.replayed(), options.end_state_tolerance, deviation, defects,
-        outcome.reference_end, notes, outcome.replay_end, outcome.stopped)
+        outcome.reference_end, notes, outcome.replay_end, outcome.stopped, outcome.parted)
     passed = (end_state_ok and min_gap >= -options.gap_tolerance
               and cone <= impulse_tolerance and dissipation <= impulse_tolerance
               and monotone and clock_error <= options.clock_tolerance)
