@@ -908,3 +908,60 @@ def test_the_parser_does_not_load_the_solver():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_a_continued_discovery_is_swept_with_its_task_stated_from_the_cases_start(
+        tmp_path, monkeypatch):
+    """A task with `[continuation]` (biped-step's route): a case perturbs the start of the
+    discovery it continues, and the continuation's own task is stated from that start too
+    (`Stage.at_start`: its reference splines begin there) instead of the sweep refusing
+    the plan; outside a sweep the stage keeps its task's start (stand-ins for the
+    solver's outcomes: only the fields read)."""
+    from types import SimpleNamespace as NS
+
+    from strider import STRIDER_TASK, write_strider
+
+    from tfcontact.ocp import contact
+    from tfcontact.scenes import pipeline
+    from tfcontact.sweep import results, run
+    from tfcontact.sweep.run import solve_case
+
+    write_strider(tmp_path)
+    path = tmp_path / "further.toml"
+    path.write_text(STRIDER_TASK.replace('name = "strider-shift"', 'name = "strider-further"')
+                    .replace("x = 0.02", "x = 0.03")
+                    + '\n[continuation]\ntask = "strider.toml"\nsigma = 0.001\n')
+    target = sweep_target(str(path))  # refused before: a stage with its own problem
+    continued = target.later_stages("task")[0]
+    assert continued.continue_sigma == 0.001
+    task_start = continued.build("task").problem.q0
+    moved = task_start + 0.01
+    restated = continued.at_start(moved, np.zeros_like(moved)).build("task").problem
+    np.testing.assert_array_equal(restated.q0, moved)
+    assert restated.goals == continued.build("task").problem.goals  # the same task
+    np.testing.assert_array_equal(continued.build("task").problem.q0, task_start)
+
+    def discovery(problem, options, *, first_seed, verbose):
+        return NS(attempts=(contact.Attempt(None, "converged", 10, 1.0, 0.1, 0.0),),
+                  status="converged", success=True, problem=problem,
+                  ocp=NS(cost=1.0, residual=1e-6, success=True), options=options,
+                  verification=NS(end_state_deviation=0.0, summary=lambda: "relaxed"),
+                  timings={"build": 0.1, "solve": 1.0, "verify": 0.1},
+                  task=NS(to_dict=dict))
+
+    handed = []
+
+    def later(plan, task, stages, found):
+        handed.append(stages)
+        return (NS(trajectory=None, status="converged", success=True, task={},
+                   summary="converged"), [])
+
+    monkeypatch.setattr(contact, "solve_contact", discovery)
+    monkeypatch.setattr(pipeline, "discovery_outcome", lambda result, setup: None)
+    monkeypatch.setattr(run, "run_later_stages", later)
+    monkeypatch.setattr(results, "failure_reason", lambda result: (None, None))
+    record = solve_case(target, "task", SweepCase((), 0, 1), threads=1)
+    (stages,) = handed
+    assert [s.name for s in stages] == ["discover", "stance re-solve"]
+    assert max(abs(v) for v in record.offsets.values()) > 1e-3  # the start moved
+    np.testing.assert_array_equal(stages[0].build("task").problem.q0, record.q0)

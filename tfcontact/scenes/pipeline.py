@@ -63,6 +63,14 @@ class PlanSetup:
     start_ranges: dict[str, tuple[float, float]] | None = None
     from_start: Callable[[np.ndarray, np.ndarray], ContactProblem] | None = None
 
+    def problem_from(self, q0: np.ndarray, v0: np.ndarray) -> ContactProblem:
+        """The problem planned from the start (q0, v0): `from_start`'s, else `problem`
+        with only its start state replaced."""
+        q0, v0 = np.asarray(q0, dtype=float), np.asarray(v0, dtype=float)
+        if self.from_start is not None:
+            return self.from_start(q0, v0)
+        return dataclasses.replace(self.problem, q0=q0, v0=v0)
+
 
 @dataclass(frozen=True)
 class PlanOutcome:
@@ -111,9 +119,20 @@ class Stage(ABC):
 
     @property
     def own_setup(self) -> bool:
-        """Whether the stage solves a problem of its own rather than the stage before's
-        (a sweep, which perturbs the discovery's start, cannot run such a stage)."""
+        """Whether the stage solves a problem of its own rather than the stage before's."""
         return False
+
+    @property
+    def follows_start(self) -> bool:
+        """Whether a sweep's case, which perturbs the discovery's start, can run this
+        stage from that start (`at_start`): one that solves the stage before's problem,
+        or one whose own problem is restated from it."""
+        return not self.own_setup
+
+    def at_start(self, q0: np.ndarray, v0: np.ndarray) -> Stage:
+        """This stage as a sweep's case runs it from the start (q0, v0); default itself
+        (it solves the problem of the stage before)."""
+        return self
 
     def with_threads(self, threads: int) -> Stage:
         """This stage solving on `threads` threads (a sweep's case shares the cores with
@@ -155,8 +174,26 @@ class Discover(Stage):
 
     @property
     def own_setup(self) -> bool:
-        # a continuation solves its own task, not the perturbed start of the one before
+        # a continuation solves its own task, not the problem of the discovery before
         return self.continue_sigma is not None
+
+    @property
+    def follows_start(self) -> bool:
+        return True
+
+    def at_start(self, q0: np.ndarray, v0: np.ndarray) -> Stage:
+        """A continuation with its own task stated from the start (q0, v0)
+        (`PlanSetup.problem_from`: a task file's reference splines begin there), as a
+        sweep's case states the discovery it continues."""
+        if self.continue_sigma is None:
+            return self
+        build = self.build
+
+        def from_start(task: str | None) -> PlanSetup:
+            setup = build(task)
+            return dataclasses.replace(setup, problem=setup.problem_from(q0, v0))
+
+        return dataclasses.replace(self, build=from_start)
 
     def run(self, given: StageInput) -> PlanOutcome:
         from tfcontact.ocp.contact import solve_contact

@@ -74,7 +74,9 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
                                       cpu_time=time.process_time() - cpu)
     from tfcontact.scenes.pipeline import discovery_outcome
 
-    stages = tuple(s.with_threads(threads) for s in target.later_stages(task))
+    # a continued discovery's own task is stated from the case's start too
+    stages = tuple(s.at_start(start.q0, start.v0).with_threads(threads)
+                   for s in target.later_stages(task))
     discovered = target.discovery_problem(task, problem)
     if not stages:
         result = solve_contact(discovered, options, verbose=False)

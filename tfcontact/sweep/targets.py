@@ -228,9 +228,7 @@ class PlanTarget(SweepTarget):
         """The plan from `start` as its user would state it (`PlanSetup.from_start`: a
         task file's reference splines begin there, as the hopper's do), else only its
         start state replaced."""
-        if setup.from_start is None:
-            return super().from_start(setup, task, params, start)
-        return setup.from_start(np.asarray(start.q0), np.asarray(start.v0))
+        return setup.problem_from(start.q0, start.v0)
 
     def perturbation(self, setup: PlanSetup) -> Perturbation:
         if setup.start_ranges:
@@ -268,7 +266,7 @@ def sweep_target(plan: str) -> SweepTarget:
                            f"whose start a sweep could perturb; sweepable plans: "
                            f"{', '.join(sweepable)}")
     # a given sequence's stage builds its problem, which a case replaces by its own
-    own = [s.name for s in found.stages[1:] if s.own_setup]
+    own = [s.name for s in found.stages[1:] if not s.follows_start]
     if own:
         raise InvalidInput(f"plan `{plan}` has stages that solve problems of their own "
                            f"({', '.join(own)}), not the perturbed start's; sweepable "
@@ -277,4 +275,4 @@ def sweep_target(plan: str) -> SweepTarget:
 
 
 def _sweepable(plan: Plan) -> bool:
-    return plan.build is not None and not any(s.own_setup for s in plan.stages[1:])
+    return plan.build is not None and all(s.follows_start for s in plan.stages[1:])
