@@ -319,9 +319,11 @@ def test_the_multicontact_reference_passes_an_open_loop_unstable_plan_on_its_def
 def test_the_multicontact_reference_fails_a_wrong_interval_and_an_unmeasured_kick(
         standing_plan, monkeypatch):
     """With the multi-contact reference as with the exact one: a 5 N m hip torque in
-    interval 5 makes the local defects exceed the tolerance and the plan fails; and a
-    kicked replay that stops (here its budget) measures no amplification, so the plan
-    fails instead of passing on an unmeasured sensitivity."""
+    interval 5 makes the local defects exceed the tolerance and the plan fails. A kicked
+    replay to T that stops (here its budget) measures no amplification to T: the plan is
+    then judged where the open-loop replay left it, the kicks up to that boundary
+    measuring it (the plan passes, as uncapped). When those kicks stop too, nothing is
+    measured and the plan fails instead of passing on an unmeasured sensitivity."""
     from dataclasses import replace
 
     from tfcontact.errors import SolveFailed
@@ -338,12 +340,24 @@ def test_the_multicontact_reference_fails_a_wrong_interval_and_an_unmeasured_kic
     assert v.defect_sum > options.verify.end_state_tolerance
     assert not v.open_loop_unstable and not v.passed
 
-    def stopped(self, plan, gap_tolerance):
+    def stopped_to_t(self, plan, gap_tolerance):
         def end(x0):
             raise SolveFailed("kicked multi-contact replay stopped: budget")
         return end
 
-    monkeypatch.setattr(MultiContactReplay, "replay_end", stopped)
+    monkeypatch.setattr(MultiContactReplay, "replay_end", stopped_to_t)
+    v = verify_plan(mp.problem, result.system, result.ocp, result.physical, options)
+    assert v.defect_sum < 1e-3
+    assert v.open_loop_amplification * v.defect_sum > options.verify.end_state_tolerance
+    assert v.open_loop_unstable and v.passed
+    assert any("judged where the open-loop replay left it" in note for note in v.notes)
+
+    def stopped(self, plan, gap_tolerance):
+        def to(x0, boundary):
+            raise SolveFailed("kicked multi-contact replay stopped: budget")
+        return to
+
+    monkeypatch.setattr(MultiContactReplay, "replay_to", stopped)
     v = verify_plan(mp.problem, result.system, result.ocp, result.physical, options)
     assert v.defect_sum < 1e-3 and np.isnan(v.open_loop_amplification)
     assert not v.open_loop_unstable and not v.passed

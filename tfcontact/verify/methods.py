@@ -137,9 +137,10 @@ class MultiContactReplay(Replay):
 
     An open-loop unstable plan (a biped balancing on its feet) may pass on its local
     defects as with the exact reference (`end_state_check`): this simulator is the replay
-    kicked for the amplification. A kicked replay that stops (Painleve, event cap, budget)
-    measures nothing, and the check then fails. An open-loop replay that stops before T is
-    judged where it left the plan (`departure_check`).
+    kicked for the amplification. A kicked replay to T that stops (Painleve, event cap,
+    budget) measures nothing: the plan is then judged where the open-loop replay left it
+    (`departure_check`, kicks up to that boundary), as is an open-loop replay that stops
+    before T; where those kicks stop too, the check fails.
 
     Args:
         simulation: the simulator's `MultiContactOptions` (default: its defaults); its
