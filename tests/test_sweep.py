@@ -248,7 +248,8 @@ def test_a_case_after_later_stages_names_the_stage_that_failed():
     assert (failed.status, failed.success, failed.first_attempt_success) == (
         "nlp_failed", False, False)
     assert failed.failure_kind == "stance re-solve: nlp_failed"
-    assert failed.failure == "task: all goals met"  # no line says FAILED: the last one
+    # no line says FAILED: the line that states the status, not a passed check after it
+    assert failed.failure == "stances: nlp_failed, Maximum_Iterations"
     # the plan's goals replace the discovery's, which stay on record beside them
     discovery_task = {"status": "goal_missed", "passed": False, "checks": []}
     planned = dataclasses.replace(found, extra={**found.extra, "task": discovery_task})

@@ -194,7 +194,10 @@ class CaseResult:
         if not success:
             failing = [line for line in lines if any(
                 word in line for word in ("FAILED", "not started", "missed"))]
-            failure = (failing or lines or [outcome.status])[-1]
+            # else the line that states the status (a re-solve at IPOPT's cap), not the
+            # summary's last line: that was a passed check ("motion: ... ok")
+            named = [line for line in lines if outcome.status in line]
+            failure = (failing or named or [outcome.status])[-1]
             kind = f"{_failed_stage(stages, outcome.status)}: {outcome.status}"
         return dataclasses.replace(
             self, status=outcome.status, success=success,
