@@ -15,7 +15,7 @@ import pytest
 
 from tfcontact import interrupt
 from tfcontact.cli import EXIT_CODES, main
-from tfcontact.errors import Interrupted, InvalidInput
+from tfcontact.errors import Interrupted, InvalidInput, TimeLimitReached
 from tfcontact.ocp.nodes import ipopt_solver, report_progress, solve_guarded
 from tfcontact.scenes.output import OutputFolder
 
@@ -146,6 +146,80 @@ def test_a_signal_stops_an_opti_solve_within_an_iteration(sigint_handled):
     assert time.monotonic() - start < 3.0
     assert caught.value.signal_number == signal.SIGINT
     assert opti.debug.stats()["return_status"] == "User_Requested_Stop"
+
+
+def test_a_time_limit_stops_an_nlp_within_an_iteration():
+    """Inside `time_limit` an NLP that IPOPT works on for tens of seconds stops at the
+    first iteration past the deadline and its guard raises `TimeLimitReached` with the
+    limit; after the block no deadline is left."""
+    solver = _slow_nlp()
+    start = time.monotonic()
+    with pytest.raises(TimeLimitReached) as caught, interrupt.time_limit(1.0), \
+            interrupt.guard():
+        solver(x0=0.5, lbg=0, ubg=ca.vertcat(0, 0.1 * ca.DM.ones(19999)))
+    assert time.monotonic() - start < 3.0
+    assert solver.stats()["return_status"] == "User_Requested_Stop"
+    assert caught.value.limit == 1.0 and 1.0 <= caught.value.elapsed < 3.0
+    assert "time limit of 1 s" in str(caught.value)
+    assert not isinstance(caught.value, Exception)  # no `except Exception` swallows it
+    assert not interrupt.past_deadline()
+    with interrupt.guard():
+        pass
+
+
+def test_a_time_limit_stops_an_opti_solve_on_a_worker_thread():
+    """A sweep's case runs on a Dask worker's thread, where no signal handler can be set:
+    the limit still stops the exact re-solves' Opti solve (whose failed solve CasADi turns
+    into a RuntimeError, `solve_guarded` into its last iterate) with `TimeLimitReached`."""
+    outcome = []
+
+    def solve() -> None:
+        opti, stop = _slow_opti()  # `stop` kept alive: CasADi borrows it
+        try:
+            with interrupt.time_limit(1.0):
+                solve_guarded(opti, None)
+        except TimeLimitReached as error:
+            outcome.append((error, opti.debug.stats()["return_status"]))
+
+    worker = threading.Thread(target=solve)
+    start = time.monotonic()
+    worker.start()
+    worker.join(timeout=60)
+    assert time.monotonic() - start < 10.0  # the Opti set-up included
+    ((error, status),) = outcome
+    assert status == "User_Requested_Stop" and error.limit == 1.0
+
+
+def test_no_nlp_starts_after_the_time_limit_and_nested_limits_keep_the_earlier():
+    ran = []
+    with interrupt.time_limit(60.0), interrupt.time_limit(0.01):
+        time.sleep(0.02)
+        with pytest.raises(TimeLimitReached), interrupt.guard():
+            ran.append("NLP")
+    assert not ran
+    with interrupt.time_limit(0.01), interrupt.time_limit(60.0):
+        time.sleep(0.02)
+        assert interrupt.past_deadline()
+    with interrupt.time_limit(None):
+        assert not interrupt.past_deadline()
+    for bad in (0, -1.0, float("inf"), "10"):
+        with pytest.raises(InvalidInput, match="time limit"), interrupt.time_limit(bad):
+            pass
+
+
+def test_a_plan_stopped_at_its_time_limit_exits_1_and_keeps_the_old_one(tmp_path):
+    """`tfcontact plan --time-limit`: the hopper (about 10 s) stopped after 1 s exits 1,
+    names the limit, and the folder's earlier plan stays as it was."""
+    out = tmp_path / "hop"
+    out.mkdir()
+    (out / "summary.json").write_text("earlier plan")
+    done = subprocess.run([*TFCONTACT, "plan", "hopper", "--out", str(out), "--force",
+                           "--time-limit", "1"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1, done.stderr
+    assert "stopped at the time limit of 1 s" in done.stderr
+    assert "Traceback" not in done.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["hop"]
+    assert (out / "summary.json").read_text() == "earlier plan"
 
 
 def test_the_opti_progress_reads_the_iterates_objective(capsys):

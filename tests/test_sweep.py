@@ -566,6 +566,30 @@ def test_a_case_that_raises_is_recorded_and_solved_again(tmp_path, monkeypatch):
     assert run_sweep(spec, tmp_path, n_workers=1, progress=False).solved == 1
 
 
+def test_a_case_past_its_time_limit_is_recorded_as_failed_and_solved_with_more_time(
+        tmp_path):
+    """Without a limit a case ran to its iteration caps (a planar solo12 gait's case past an
+    hour, twice). With `case_time_limit` it stops at its first IPOPT iteration past the
+    limit: failed, status time_limit, its start and times kept; a rerun with the same limit
+    leaves it, one without a limit solves it."""
+    spec = SweepSpec("particle", starts=1, task="reduced")
+    result = run_sweep(spec, tmp_path, n_workers=1, progress=False, case_time_limit=1e-3)
+    (case,) = result.cases
+    assert (case.status, case.success, case.failure_kind) == ("time_limit", False,
+                                                              "time limit")
+    assert "stopped at the time limit of 0.001 s" in case.failure
+    assert case.q0 and case.times["cpu"] > 0 and case.extra["time_limit"] == 1e-3
+    text = _case_files(tmp_path)[0].read_text()
+    assert _as_json(CaseResult.from_dict(json.loads(text))) == text == _as_json(case)
+    assert "| time limit | 1 |" in (tmp_path / "table.md").read_text()
+    runs = json.loads((tmp_path / "sweep.json").read_text())["runs"]
+    assert runs[-1]["case_time_limit"] == 1e-3
+    again = run_sweep(spec, tmp_path, n_workers=1, progress=False, case_time_limit=1e-3)
+    assert again.solved == 0
+    solved = run_sweep(spec, tmp_path, n_workers=1, progress=False)
+    assert solved.solved == 1 and solved.cases[0].success
+
+
 @pytest.mark.slow
 def recorded_stance_solves(monkeypatch) -> list:
     """The (start q0, plan, IPOPT's threads) of every `resolve_stances` a stage makes, as
@@ -866,6 +890,7 @@ def test_a_cases_discovery_drops_the_rows_only_the_stance_re_solve_keeps(tmp_pat
     (["hopper", "--friction", "-1"], "`friction` values must be finite and >= 0"),
     (["hopper", "--workers", "0"], "`n_workers` must be a positive integer, got 0"),
     (["hopper", "--threads", "0"], "`threads_per_case` must be a positive integer, got 0"),
+    (["hopper", "--time-limit", "0"], "`case_time_limit` must be None or a number > 0"),
 ])
 def test_command_exits_2_on_bad_input(argv, message, capsys, tmp_path):
     parser = argparse.ArgumentParser()

@@ -59,6 +59,8 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "load_trajectory": ("tfcontact.plan_format", "load_trajectory"),
     "Interrupted": ("tfcontact.errors", "Interrupted"),
     "TfcontactError": ("tfcontact.errors", "TfcontactError"),
+    "TimeLimitReached": ("tfcontact.errors", "TimeLimitReached"),
+    "time_limit": ("tfcontact.interrupt", "time_limit"),
 }
 
 __all__ = sorted(_EXPORTS)

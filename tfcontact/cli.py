@@ -1,7 +1,7 @@
 """The `tfcontact` command: plan, replay.
 
     tfcontact plan --list
-    tfcontact plan hopper --out DIR [--task long] [--attempts N] [--force] [--quiet]
+    tfcontact plan hopper --out DIR [--task long] [--attempts N] [--time-limit S] [--force]
     tfcontact plan monoped --out DIR [--task reduced|hand-set]
     tfcontact replay DIR/trajectory.npz [--html OUT] [--open]
     tfcontact check DIR/trajectory.npz
@@ -10,7 +10,8 @@
 Exit codes (`EXIT_CODES`): 0 plan verified (or command done), 1 plan failed (solver or
 verification; the reason is printed), 2 bad input or usage (one line naming the problem
 and the fix; `--debug` shows the traceback), 130 interrupted (Ctrl-C or SIGTERM; nothing
-half-written, an earlier plan in the folder untouched).
+half-written, an earlier plan in the folder untouched). A plan stopped at its --time-limit
+exits 1, with nothing written either.
 """
 
 from __future__ import annotations
@@ -26,13 +27,15 @@ from tfcontact.errors import (
     InvalidInput,
     RobotLoadError,
     TfcontactError,
+    TimeLimitReached,
     TrajectoryFileError,
 )
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 EXIT_CODES = {
     EXIT_OK: "the plan is verified and does its task (other commands: done)",
-    EXIT_FAILED: "the plan failed: solver, verification or task checks (reason printed)",
+    EXIT_FAILED: "the plan failed: solver, verification or task checks (reason printed), or "
+                 "it was stopped at --time-limit (nothing written)",
     EXIT_USAGE: "bad input or usage: unknown plan, flag value, output folder, damaged file",
     EXIT_INTERRUPTED: "interrupted by Ctrl-C or SIGTERM: nothing half-written",
 }
@@ -72,9 +75,12 @@ def _plan(args: argparse.Namespace) -> int:
         for name in tasks:
             print(f"  {name:{width}s} {task_plan(name).summary}")
         return EXIT_OK if args.list else EXIT_USAGE
+    from tfcontact.interrupt import time_limit
+
     out = Path(args.out) if args.out else Path("out") / Path(args.name).stem
-    report = run_plan(args.name, out, task=args.task, attempts=args.attempts,
-                      verbose=not args.quiet, force=args.force)
+    with time_limit(args.time_limit):
+        report = run_plan(args.name, out, task=args.task, attempts=args.attempts,
+                          verbose=not args.quiet, force=args.force)
     if not report.success:
         print(f"tfcontact: plan {args.name} failed: {report.status} (written to "
               f"{report.out_dir} with its failed status)", file=sys.stderr)
@@ -123,6 +129,11 @@ def main(argv: list[str] | None = None) -> int:
                       help="solve a failed plan again from a perturbed guess, up to this "
                            "many solves in all (default: the plan's; hopper: 3 for the short "
                            "task); a task with exact_resolve runs its whole plan again")
+    plan.add_argument("--time-limit", type=_positive(float, "--time-limit"), default=None,
+                      metavar="SECONDS",
+                      help="stop the plan at the first IPOPT iteration after this many "
+                           "seconds of wall-clock time: exit 1, nothing written, the output "
+                           "folder as it was (default: no limit)")
     plan.add_argument("--quiet", action="store_true", help="no progress output")
     plan.set_defaults(func=_plan)
 
@@ -167,6 +178,13 @@ def main(argv: list[str] | None = None) -> int:
         name = str(error) if isinstance(error, Interrupted) else "interrupted by SIGINT"
         print(f"tfcontact: {name}; stopped, nothing half-written", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except TimeLimitReached as error:
+        if args.debug:
+            raise
+        print(f"tfcontact: plan {args.name} stopped at the time limit of {error.limit:g} s "
+              f"(--time-limit; {error.elapsed:.0f} s elapsed): nothing written, the output "
+              "folder as it was; allow it more time", file=sys.stderr)
+        return EXIT_FAILED
     except _INPUT_ERRORS as error:
         if args.debug:
             raise

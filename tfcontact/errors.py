@@ -118,3 +118,18 @@ class Interrupted(KeyboardInterrupt):
 
         self.signal_number = int(signal_number)
         super().__init__(f"interrupted by {signal.Signals(self.signal_number).name}")
+
+
+class TimeLimitReached(BaseException):
+    """A solve ran past the time limit set around it (`tfcontact.interrupt.time_limit`).
+
+    A `BaseException`, as `Interrupted` is a `KeyboardInterrupt`: no `except Exception` on
+    the way up turns it into a failed stage that the plan then goes on from. `limit` and
+    `elapsed` are wall-clock seconds.
+    """
+
+    def __init__(self, limit: float, elapsed: float):
+        self.limit = float(limit)
+        self.elapsed = float(elapsed)
+        super().__init__(f"stopped at the time limit of {self.limit:g} s ({self.elapsed:.0f} s "
+                         "elapsed); allow more time or give the plan a better start")

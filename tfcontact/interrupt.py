@@ -19,6 +19,13 @@ argument conversion (`DM_from_array` in casadi.py) catches every exception with 
 `stop_on_signals()`, for command-line entry points, remembers each signal for the whole
 program, so that the next `guard()` or `raise_if_signalled()` (before a plan's output is
 published) stops it even when the exception itself was swallowed.
+
+A time limit stops a solve the same way: inside a `time_limit(seconds)` block,
+`StopOnSignal` ends the running NLP at the first iteration past the deadline and `guard()`
+raises `TimeLimitReached` on leaving it (and on entering one after the deadline, so that no
+further NLP starts). A homotopy, a stance re-solve or a sweep case thus stops within one
+IPOPT iteration of its budget instead of running on to the iteration cap; what is not an
+IPOPT solve (a reference simulation) runs to its own budget.
 """
 
 from __future__ import annotations
@@ -26,19 +33,23 @@ from __future__ import annotations
 import os
 import signal
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from types import FrameType
 
 import casadi as ca
 
-from tfcontact.errors import Interrupted
+from tfcontact.errors import Interrupted, TimeLimitReached, optional_positive
 
 _CASADI_MODULE = os.path.join("casadi", "casadi.py")
 # The signal recorded by the innermost active `guard()` (None: none), read by StopOnSignal.
 _pending: list[int] = []
 # Signals recorded by `stop_on_signals()`'s handler, kept until its block ends.
 _received: list[int] = []
+# The innermost `time_limit()` of each thread: .deadline = (monotonic deadline, limit [s],
+# monotonic start), or no attribute. Per thread: a sweep's cases run on worker threads.
+_limits = threading.local()
 
 
 class _Caught:
@@ -73,11 +84,19 @@ def guard() -> Iterator[_Caught]:
     Raises:
         Interrupted: a signal arrived inside the block (also when the native call caught
             the handler's exception and returned), or before it inside `stop_on_signals()`.
+        TimeLimitReached: the innermost `time_limit()` around it has passed, on entering
+            or on leaving the block (an NLP stopped by `StopOnSignal` at the deadline).
     """
     caught = _Caught()
+    raise_if_past_deadline()
     if threading.current_thread() is not threading.main_thread():
         # Signals reach only the main thread; handlers cannot be set from another one.
-        yield caught
+        try:
+            yield caught
+        except Exception as error:  # Opti's RuntimeError for an NLP stopped at the deadline
+            raise_if_past_deadline(cause=error)
+            raise
+        raise_if_past_deadline()
         return
 
     def handler(signum: int, frame: FrameType | None) -> None:
@@ -99,6 +118,8 @@ def guard() -> Iterator[_Caught]:
         # A native call may turn the handler's exception into its own error (CasADi's
         # Opti raises RuntimeError for the failed solve): the signal still wins.
         if caught.signal_number is None and not isinstance(error, KeyboardInterrupt):
+            if isinstance(error, Exception):  # ... and an NLP stopped at the deadline
+                raise_if_past_deadline(cause=error)
             raise
         raise Interrupted(caught.signal_number or signal.SIGINT) from error
     finally:
@@ -107,6 +128,7 @@ def guard() -> Iterator[_Caught]:
         _pending.clear()
     if caught.signal_number is not None:
         raise Interrupted(caught.signal_number)
+    raise_if_past_deadline()
 
 
 def _in_casadi_glue(frame: FrameType | None) -> bool:
@@ -119,7 +141,8 @@ _OBJECTIVE = ca.nlpsol_out().index("f")
 
 
 class StopOnSignal(ca.Callback):
-    """IPOPT's `iteration_callback`: stop the NLP once a `guard()` recorded a signal.
+    """IPOPT's `iteration_callback`: stop the NLP once a `guard()` recorded a signal or the
+    time limit (`time_limit`) has passed.
 
     Keep a reference to the object for as long as the solver that uses it lives (CasADi
     holds only a borrowed one).
@@ -153,7 +176,7 @@ class StopOnSignal(ca.Callback):
         self.objective = float(arg[_OBJECTIVE])
         if self.on_iteration is not None:
             self.on_iteration()
-        return [1 if _pending else 0]
+        return [1 if _pending or past_deadline() else 0]
 
 
 @contextmanager
@@ -223,3 +246,49 @@ def raise_if_signalled() -> None:
     """
     if _received:
         raise Interrupted(_received[-1])
+
+
+@contextmanager
+def time_limit(seconds: float | None) -> Iterator[None]:
+    """Inside the block, IPOPT solves stop once `seconds` of wall-clock time have passed
+    since it began: the NLP running then ends at its next iteration and its `guard()`
+    raises `TimeLimitReached` (module docstring). None: no limit of its own (an enclosing
+    one still holds); nested limits keep the earlier deadline. Per thread.
+
+    Raises:
+        InvalidInput: `seconds` is not None or a number > 0.
+    """
+    optional_positive(seconds, "time limit")
+    outer = getattr(_limits, "deadline", None)
+    if seconds is not None:
+        began = time.monotonic()
+        mine = (began + float(seconds), float(seconds), began)
+        if outer is None or mine[0] < outer[0]:
+            _limits.deadline = mine
+    try:
+        yield
+    finally:
+        if outer is None:
+            _limits.__dict__.pop("deadline", None)
+        else:
+            _limits.deadline = outer
+
+
+def past_deadline() -> bool:
+    """Whether this thread's innermost `time_limit()` has passed (False: none set)."""
+    deadline = getattr(_limits, "deadline", None)
+    return deadline is not None and time.monotonic() >= deadline[0]
+
+
+def raise_if_past_deadline(cause: BaseException | None = None) -> None:
+    """Raise `TimeLimitReached` (from `cause`, the error a stopped solve raised) if this
+    thread's `time_limit()` has passed.
+
+    Raises:
+        TimeLimitReached: with the limit and the seconds elapsed since it was set.
+    """
+    deadline = getattr(_limits, "deadline", None)
+    if deadline is not None:
+        now = time.monotonic()
+        if now >= deadline[0]:
+            raise TimeLimitReached(deadline[1], now - deadline[2]) from cause

@@ -53,6 +53,10 @@ def add_sweep_parser(subparsers: Any) -> argparse.ArgumentParser:
                              "(default 1: one case per core); `--workers 1 --threads 2` "
                              "runs each case as `tfcontact plan` does on 2 cores, on its "
                              "rounding path")
+    parser.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
+                        help="wall-clock seconds per case: a case still solving then stops "
+                             "and is recorded as failed with status time_limit (a rerun "
+                             "with a larger limit solves it again); default none")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.set_defaults(func=sweep_command)
     return parser
@@ -69,7 +73,7 @@ def sweep_command(args: argparse.Namespace) -> int:
         spec = SweepSpec(plan=args.plan, starts=args.starts, task=args.task, seed=args.seed,
                          grid=grid, threads_per_case=args.threads)
         result = run_sweep(spec, out, scheduler=args.scheduler, n_workers=args.workers,
-                           progress=not args.quiet)
+                           progress=not args.quiet, case_time_limit=args.time_limit)
     except InvalidInput as error:
         print(f"tfcontact sweep: error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -24,6 +24,9 @@ CASE_FORMAT = 1
 
 ERROR = "error"
 """The status of a case whose solve raised (the exception's type and message in `failure`)."""
+TIME_LIMIT = "time_limit"
+"""The status of a case stopped at the sweep's time limit per case (`run_sweep`'s
+`case_time_limit`): failed, its start and times recorded, no plan."""
 
 
 def _failed_stage(stages: list[dict], status: str) -> str:
@@ -61,8 +64,8 @@ class CaseResult:
         offsets: what the perturbation added to the nominal start, by coordinate name.
         q0, v0: the perturbed start state; q_names: the names of q0's entries.
         status: the plan's `ContactResult.status` ("converged", "nlp_failed",
-            "not_converged", "verification_failed", "goal_missed", "no_motion") or "error"
-            (the solve raised).
+            "not_converged", "verification_failed", "goal_missed", "no_motion"), "error"
+            (the solve raised) or "time_limit" (stopped at the sweep's limit per case).
         success: converged and verified (the returned plan: `ContactResult.chosen`).
         first_attempt_success: the first attempt (unperturbed guess) was verified.
         attempts_used: solves made (`ContactSolverOptions.attempts` at most).
@@ -233,6 +236,24 @@ class CaseResult:
             times={"wall": float(wall_time)},
             failure=f"{type(error).__name__}: {error}", failure_kind=f"error: "
             f"{type(error).__name__}")
+
+    @classmethod
+    def from_time_limit(cls, case: SweepCase, plan: str, task: str, start: Any,
+                        q_names: tuple[str, ...], error: BaseException, wall_time: float, *,
+                        cpu_time: float = math.nan) -> CaseResult:
+        """The record of a case stopped at its time limit (`error` the
+        `TimeLimitReached`): its start (`start` a `PerturbedStart`) and times, no plan."""
+        return cls(
+            case_id=case.case_id, plan=plan, task=task, params=case.params, start=case.start,
+            seed=case.seed, offsets=dict(start.offsets),
+            q0=tuple(float(v) for v in start.q0), v0=tuple(float(v) for v in start.v0),
+            q_names=q_names, status=TIME_LIMIT, success=False, first_attempt_success=False,
+            attempts_used=0, attempt_statuses=(), iterations=0, objective=math.nan,
+            residual=math.nan, end_state_deviation=math.nan,
+            times={"wall": float(wall_time), "cpu": float(cpu_time)},
+            failure=str(error), failure_kind="time limit",
+            extra={"draws": start.tries, "attempts": [],
+                   "time_limit": float(getattr(error, "limit", math.nan))})
 
     def to_dict(self) -> dict:
         out = asdict(dataclasses.replace(self, trajectory=None))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import math
 import os
 import signal
 import sys
@@ -19,10 +20,11 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from tfcontact.errors import InvalidInput, positive_int
+from tfcontact import interrupt
+from tfcontact.errors import InvalidInput, TimeLimitReached, optional_positive, positive_int
 from tfcontact.mpcc import Ipopt
 from tfcontact.sweep.report import chart
-from tfcontact.sweep.results import ERROR, CaseFileError, CaseResult, SweepResult
+from tfcontact.sweep.results import ERROR, TIME_LIMIT, CaseFileError, CaseResult, SweepResult
 from tfcontact.sweep.spec import GRID_PARAMETERS, SweepCase, SweepSpec
 from tfcontact.sweep.targets import SweepTarget
 
@@ -46,13 +48,32 @@ def with_case_threads(nlp: Ipopt, threads: int) -> Ipopt:
     return dataclasses.replace(nlp, threads=threads, blas_threads=min(stated, threads))
 
 
-def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) -> CaseResult:
+def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int,
+               time_limit: float | None = None) -> CaseResult:
     """Solve one case (on a worker): build the plan with the case's grid point, draw its
     perturbed start, solve and verify it with `solve_contact`, then run the plan's later
-    stages on that outcome and check its collisions as `tfcontact plan` does."""
+    stages on that outcome and check its collisions as `tfcontact plan` does. With
+    `time_limit` [s] the case stops at the first IPOPT iteration past it
+    (`tfcontact.interrupt.time_limit`), recorded with status "time_limit"."""
+    started, cpu = time.perf_counter(), time.process_time()
+    drawn: list = []
+    try:
+        with interrupt.time_limit(time_limit):
+            return _solve_case(target, task, case, threads, drawn, started, cpu)
+    except TimeLimitReached as error:
+        if not drawn:  # stopped before its start was drawn: no IPOPT runs there
+            raise
+        start, q_names = drawn
+        return CaseResult.from_time_limit(case, target.name, task, start, q_names, error,
+                                          time.perf_counter() - started,
+                                          cpu_time=time.process_time() - cpu)
+
+
+def _solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int, drawn: list,
+                started: float, cpu: float) -> CaseResult:
+    """`solve_case`'s solve; `drawn` gets the case's start and q names once known."""
     from tfcontact.ocp.contact import solve_contact
 
-    started, cpu = time.perf_counter(), time.process_time()
     problem_params = {k: v for k, v in case.params if GRID_PARAMETERS[k].level == "problem"}
     setup = target.setup(task, problem_params)
     options = setup.options
@@ -63,6 +84,7 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int) ->
     rng = np.random.default_rng([case.seed, case.start])
     start = target.perturbation(setup).sample(setup.problem, rng)
     problem = target.from_start(setup, task, problem_params, start)
+    drawn[:] = [start, tuple(problem.system.cls.q_names)]
     given = target.given_sequence(task)
     if given is not None:  # no discovery: the sequence's solve from the perturbed start
         moved = dataclasses.replace(setup, problem=problem, options=options)
@@ -198,14 +220,15 @@ class ProgressLines(Progress):
 
 
 def run_sweep(spec: SweepSpec, out_dir: Path | str, *, scheduler: str | None = None,
-              n_workers: int = 2, progress: bool | Progress = True) -> SweepResult:
+              n_workers: int = 2, progress: bool | Progress = True,
+              case_time_limit: float | None = None) -> SweepResult:
     """Run every case of `spec` as a Dask task and write the sweep folder.
 
     Each case's `CaseResult` is saved as `out_dir/cases/<case_id>.json` as soon as it
     finishes, its plan (when the target has a robot to draw) as the trajectory file
     `out_dir/plans/<case_id>.npz` just before, so a stopped sweep loses only the cases
     running; a rerun on the same folder solves only the cases without a file (and those
-    whose solve raised, status "error").
+    whose solve raised, status "error", and those stopped at a smaller `case_time_limit`).
     At the end `table.md` (`SweepResult.table`) and `chart.png` are written from all the
     spec's case files.
 
@@ -219,6 +242,11 @@ def run_sweep(spec: SweepSpec, out_dir: Path | str, *, scheduler: str | None = N
             `n_workers` processes with one thread each, closed at the end.
         n_workers: the LocalCluster's processes (one case each at a time).
         progress: a line per finished case (True), none (False) or a `Progress`.
+        case_time_limit: wall-clock seconds per case; a case still solving then stops at
+            its next IPOPT iteration and is recorded as failed with status "time_limit"
+            (`tfcontact.interrupt.time_limit`): a case that runs to its iteration caps can
+            otherwise take an hour. None (default): no limit. Each run of the folder
+            records its limit in the sweep file.
 
     Returns:
         The `SweepResult`.
@@ -232,6 +260,7 @@ def run_sweep(spec: SweepSpec, out_dir: Path | str, *, scheduler: str | None = N
     if not isinstance(spec, SweepSpec):
         raise InvalidInput(f"`spec` must be a SweepSpec, got {type(spec).__name__}")
     positive_int(n_workers, "n_workers")
+    optional_positive(case_time_limit, "case_time_limit")
     if scheduler is not None and not (isinstance(scheduler, str) and scheduler):
         raise InvalidInput(f"`scheduler` must be an address such as 'tcp://host:8786', "
                            f"got {scheduler!r}")
@@ -261,6 +290,10 @@ def run_sweep(spec: SweepSpec, out_dir: Path | str, *, scheduler: str | None = N
             continue
         if record.status == ERROR:
             pending.append(case)  # a crash may not repeat (a worker killed, ...)
+        elif record.status == TIME_LIMIT and (
+                case_time_limit is None
+                or case_time_limit > record.extra.get("time_limit", math.inf)):
+            pending.append(case)  # more time now than it was stopped at
         else:
             records[case.case_id] = record
     resumed = len(records)
@@ -276,9 +309,11 @@ def run_sweep(spec: SweepSpec, out_dir: Path | str, *, scheduler: str | None = N
             cases_dir.mkdir(parents=True, exist_ok=True)
             run = {"date": _now(), "cluster": cluster, "cores": os.cpu_count(),
                    "load_start": round(os.getloadavg()[0], 2),
-                   "worker_threads": worker_threads(client)}
+                   "worker_threads": worker_threads(client),
+                   "case_time_limit": case_time_limit}
             try:
-                _solve(client, pending, spec, target, reporter, cases_dir, solved)
+                _solve(client, pending, spec, target, reporter, cases_dir, solved,
+                       case_time_limit)
             finally:  # also when interrupted: the folder tells which runs made its cases
                 run.update(solved=len(solved), interrupted=len(solved) < len(pending),
                            wall_time=round(time.perf_counter() - began, 1),
@@ -416,14 +451,16 @@ def _as_finished(futures: list, reporter: Progress, began: float) -> Iterator[An
 
 
 def _solve(client: Any, pending: list[SweepCase], spec: SweepSpec, target: SweepTarget,
-           reporter: Progress, cases_dir: Path, solved: list[CaseResult]) -> None:
-    """Solve the pending cases, saving, reporting and appending to `solved` each record as
-    it finishes; on any exit the cases still running are cancelled."""
+           reporter: Progress, cases_dir: Path, solved: list[CaseResult],
+           time_limit: float | None) -> None:
+    """Solve the pending cases (each within `time_limit` [s], None: none), saving,
+    reporting and appending to `solved` each record as it finishes; on any exit the
+    cases still running are cancelled."""
     futures = []
     try:
         token = uuid.uuid4().hex[:8]
         futures = [client.submit(solve_case, target, spec.task, case, spec.threads_per_case,
-                                 key=f"sweep-{token}-{case.case_id}", pure=False)
+                                 time_limit, key=f"sweep-{token}-{case.case_id}", pure=False)
                    for case in pending]
         by_key = {f.key: case for f, case in zip(futures, pending, strict=True)}
         began = time.perf_counter()
