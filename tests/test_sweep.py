@@ -584,6 +584,7 @@ def test_a_case_past_its_time_limit_is_recorded_as_failed_and_solved_with_more_t
     assert "| time limit | 1 |" in (tmp_path / "table.md").read_text()
     runs = json.loads((tmp_path / "sweep.json").read_text())["runs"]
     assert runs[-1]["case_time_limit"] == 1e-3
+    assert "at most 0.001 s each" in (tmp_path / "table.md").read_text()
     again = run_sweep(spec, tmp_path, n_workers=1, progress=False, case_time_limit=1e-3)
     assert again.solved == 0
     solved = run_sweep(spec, tmp_path, n_workers=1, progress=False)

@@ -74,6 +74,8 @@ def _runs(runs: Sequence[dict]) -> str:
     """Where and when the cases were solved, with the machine's load (1 min averages)."""
     parts = [f"{r['date']}: {r['solved']} cases on {r['cluster']} in {r['wall_time']:.0f} s"
              + (" (interrupted)" if r.get("interrupted") else "")
+             + (f", at most {r['case_time_limit']:g} s each (a case stopped there: "
+                "time limit)" if r.get("case_time_limit") else "")
              + f", {r['cores']} cores, load average {r['load_start']:.1f} at the start and "
                f"{r['load_end']:.1f} at the end"
              + (", the workers' " + ", ".join(f"{k}={v}" for k, v in
