@@ -591,7 +591,38 @@ def test_a_case_past_its_time_limit_is_recorded_as_failed_and_solved_with_more_t
     assert solved.solved == 1 and solved.cases[0].success
 
 
-@pytest.mark.slow
+def test_a_case_stopped_after_its_discovery_keeps_the_discovery_and_names_the_stage(
+        monkeypatch):
+    """A case whose limit passes in a stage after its discovery: the record keeps the
+    discovery's solve (attempts, iterations) and says where it stopped."""
+    from tfcontact.errors import TimeLimitReached
+    from tfcontact.scenes.pipeline import Stage
+    from tfcontact.sweep.run import solve_case
+
+    class Slow(Stage):
+        name = "stance re-solve"
+
+        def run(self, given):
+            raise TimeLimitReached(5.0, 5.2)
+
+    target = sweep_target("particle")
+    monkeypatch.setattr(type(target), "later_stages", lambda self, task: (Slow(),))
+    # the particle has no robot to hand on: its discovery's result goes to the stage
+    monkeypatch.setattr("tfcontact.scenes.pipeline.discovery_outcome",
+                        lambda result, setup: result)
+    monkeypatch.setattr("tfcontact.sweep.run.run_later_stages",
+                        lambda plan, task, stages, found: stages[0].run(found))
+    record = solve_case(target, "reduced", SweepCase((), 0, 0), threads=1, time_limit=60.0)
+    assert (record.status, record.success, record.failure_kind) == ("time_limit", False,
+                                                                    "time limit")
+    assert record.failure.startswith("stopped at the time limit of 5 s")
+    assert "in the stages after discovery 1 (converged): stance re-solve" in record.failure
+    assert record.attempts_used == 1 and record.iterations > 0
+    assert record.extra["attempts"][0]["status"] == "converged"
+    assert record.extra["time_limit"] == 5.0 and record.times["cpu"] > 0
+    assert CaseResult.from_dict(json.loads(json.dumps(record.to_dict()))) == record
+
+
 def recorded_stance_solves(monkeypatch) -> list:
     """The (start q0, plan, IPOPT's threads) of every `resolve_stances` a stage makes, as
     it makes them."""
@@ -609,6 +640,7 @@ def recorded_stance_solves(monkeypatch) -> list:
     return solved
 
 
+@pytest.mark.slow
 def test_a_case_runs_the_plans_later_stages_from_its_perturbed_start(tmp_path, monkeypatch):
     """A task file with `exact_resolve`: a case's discovery from its perturbed start,
     then the stance re-solve of that discovery's problem (the same start) and the

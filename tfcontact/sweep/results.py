@@ -255,6 +255,16 @@ class CaseResult:
             extra={"draws": start.tries, "attempts": [],
                    "time_limit": float(getattr(error, "limit", math.nan))})
 
+    def stopped(self, limit: CaseResult) -> CaseResult:
+        """This record of the discovery solves a case made before it was stopped at its
+        time limit (`limit`, its `from_time_limit` record): failed with that status,
+        failure and times, the discovery's attempts and iterations kept."""
+        return dataclasses.replace(
+            self, status=limit.status, success=False, first_attempt_success=False,
+            times={**self.times, **limit.times}, failure=limit.failure,
+            failure_kind=limit.failure_kind, extra={**self.extra, **limit.extra,
+                                                    "attempts": self.extra["attempts"]})
+
     def to_dict(self) -> dict:
         out = asdict(dataclasses.replace(self, trajectory=None))
         del out["trajectory"]  # a file of its own (`run_sweep`), not JSON

@@ -14,6 +14,7 @@ import uuid
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, TextIO
@@ -54,24 +55,40 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int,
     perturbed start, solve and verify it with `solve_contact`, then run the plan's later
     stages on that outcome and check its collisions as `tfcontact plan` does. With
     `time_limit` [s] the case stops at the first IPOPT iteration past it
-    (`tfcontact.interrupt.time_limit`), recorded with status "time_limit"."""
+    (`tfcontact.interrupt.time_limit`), recorded with status "time_limit" and what it had
+    done by then (its discovery solves, which stage it was in)."""
     started, cpu = time.perf_counter(), time.process_time()
-    drawn: list = []
+    progress = _CaseProgress()
     try:
         with interrupt.time_limit(time_limit):
-            return _solve_case(target, task, case, threads, drawn, started, cpu)
+            return _solve_case(target, task, case, threads, progress, started, cpu)
     except TimeLimitReached as error:
-        if not drawn:  # stopped before its start was drawn: no IPOPT runs there
+        if progress.start is None:  # stopped before its start was drawn: no IPOPT there
             raise
-        start, q_names = drawn
-        return CaseResult.from_time_limit(case, target.name, task, start, q_names, error,
-                                          time.perf_counter() - started,
-                                          cpu_time=time.process_time() - cpu)
+        wall, cpu_time = time.perf_counter() - started, time.process_time() - cpu
+        record = CaseResult.from_time_limit(case, target.name, task, progress.start,
+                                            progress.q_names, error, wall, cpu_time=cpu_time)
+        if progress.discoveries:
+            solved = progress.discoveries
+            record = CaseResult.from_contact(
+                case, target.name, task, progress.start, solved[-1], wall,
+                cpu_time=cpu_time).after_runs(solved[:-1]).stopped(record)
+        return dataclasses.replace(record, failure=f"{record.failure} ({progress.stage})")
 
 
-def _solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int, drawn: list,
-                started: float, cpu: float) -> CaseResult:
-    """`solve_case`'s solve; `drawn` gets the case's start and q names once known."""
+@dataclass
+class _CaseProgress:
+    """How far a case got (what `solve_case` records of a case stopped at its limit)."""
+
+    start: Any = None
+    q_names: tuple[str, ...] = ()
+    discoveries: list = dataclasses.field(default_factory=list)
+    stage: str = "in its discovery"
+
+
+def _solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int,
+                progress: _CaseProgress, started: float, cpu: float) -> CaseResult:
+    """`solve_case`'s solve, telling `progress` how far it got."""
     from tfcontact.ocp.contact import solve_contact
 
     problem_params = {k: v for k, v in case.params if GRID_PARAMETERS[k].level == "problem"}
@@ -84,7 +101,7 @@ def _solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int, d
     rng = np.random.default_rng([case.seed, case.start])
     start = target.perturbation(setup).sample(setup.problem, rng)
     problem = target.from_start(setup, task, problem_params, start)
-    drawn[:] = [start, tuple(problem.system.cls.q_names)]
+    progress.start, progress.q_names = start, tuple(problem.system.cls.q_names)
     given = target.given_sequence(task)
     if given is not None:  # no discovery: the sequence's solve from the perturbed start
         moved = dataclasses.replace(setup, problem=problem, options=options)
@@ -114,12 +131,15 @@ def _solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int, d
     runs = target.whole_attempts(task)
     if runs is not None:  # as `tfcontact plan`: each run's discovery one seeded solve
         options = dataclasses.replace(options, attempts=1)
-    results = []
+    results = progress.discoveries
 
     def run_once(seed: int) -> tuple:
         began = time.perf_counter()
+        progress.stage = f"in discovery {len(results) + 1}"
         result = solve_contact(discovered, options, first_seed=seed, verbose=False)
         results.append(result)
+        progress.stage = (f"in the stages after discovery {len(results)} "
+                          f"({result.status}): {', '.join(s.name for s in stages)}")
         found = discovery_outcome(result, dataclasses.replace(setup, problem=problem))
         entry = {"stage": "discover", "status": result.status, "ran": True,
                  "seconds": time.perf_counter() - began}
