@@ -591,6 +591,28 @@ def test_a_case_past_its_time_limit_is_recorded_as_failed_and_solved_with_more_t
     assert solved.solved == 1 and solved.cases[0].success
 
 
+def test_a_case_along_a_given_sequence_stopped_at_its_limit_names_its_stage(tmp_path,
+                                                                         monkeypatch):
+    """A case with no discovery (a contact sequence given as data) stopped at its limit
+    says it was in its stance solve, not in a discovery it does not have."""
+    from strider import STRIDER_STEP, write_strider
+
+    from tfcontact.errors import TimeLimitReached
+    from tfcontact.sweep.run import solve_case
+
+    def stopped(*args):
+        raise TimeLimitReached(5.0, 5.1)
+
+    monkeypatch.setattr("tfcontact.sweep.run.run_later_stages", stopped)
+    write_strider(tmp_path)
+    path = tmp_path / "step.toml"
+    path.write_text(STRIDER_STEP + "\n[start_ranges]\nx = [-0.05, 0.05]\n")
+    record = solve_case(sweep_target(str(path)), "task", SweepCase((), 0, 3), threads=1)
+    assert (record.status, record.attempts_used, record.iterations) == ("time_limit", 0, 0)
+    assert record.failure.endswith("(in its stance solve)"), record.failure
+    assert record.offsets and record.times["wall"] > 0
+
+
 def test_a_case_stopped_after_its_discovery_keeps_the_discovery_and_names_the_stage(
         monkeypatch):
     """A case whose limit passes in a stage after its discovery: the record keeps the

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tfcontact.errors import TfcontactError
+from tfcontact.errors import TfcontactError, TimeLimitReached
 from tfcontact.sweep.spec import GridValue, SweepCase, SweepSpec
 
 if TYPE_CHECKING:
@@ -27,6 +27,14 @@ ERROR = "error"
 TIME_LIMIT = "time_limit"
 """The status of a case stopped at the sweep's time limit per case (`run_sweep`'s
 `case_time_limit`): failed, its start and times recorded, no plan."""
+
+
+def _start_fields(case: SweepCase, plan: str, task: str, start: Any) -> dict[str, Any]:
+    """A record's fields that name its case and its perturbed start (`start` a
+    `PerturbedStart`)."""
+    return {"case_id": case.case_id, "plan": plan, "task": task, "params": case.params,
+            "start": case.start, "seed": case.seed, "offsets": dict(start.offsets),
+            "q0": tuple(float(v) for v in start.q0), "v0": tuple(float(v) for v in start.v0)}
 
 
 def _failed_stage(stages: list[dict], status: str) -> str:
@@ -132,9 +140,7 @@ class CaseResult:
         attempts = result.attempts
         failure, kind = (None, None) if result.success else failure_reason(result)
         return cls(
-            case_id=case.case_id, plan=plan, task=task, params=case.params, start=case.start,
-            seed=case.seed, offsets=dict(start.offsets),
-            q0=tuple(float(v) for v in start.q0), v0=tuple(float(v) for v in start.v0),
+            **_start_fields(case, plan, task, start),
             q_names=tuple(result.problem.system.cls.q_names),
             status=result.status, success=bool(result.success),
             first_attempt_success=bool(attempts) and attempts[0].status == "converged",
@@ -158,9 +164,7 @@ class CaseResult:
         """The record of a case with no discovery (a contact sequence given as data):
         its stages' `PlanOutcome` and entries (`after_stages`), one attempt."""
         return cls(
-            case_id=case.case_id, plan=plan, task=task, params=case.params, start=case.start,
-            seed=case.seed, offsets=dict(start.offsets),
-            q0=tuple(float(v) for v in start.q0), v0=tuple(float(v) for v in start.v0),
+            **_start_fields(case, plan, task, start),
             q_names=q_names, status=outcome.status, success=bool(outcome.success),
             first_attempt_success=bool(outcome.success), attempts_used=1,
             # an exact plan along its stances: no relaxed complementarity, residual 0
@@ -239,31 +243,28 @@ class CaseResult:
 
     @classmethod
     def from_time_limit(cls, case: SweepCase, plan: str, task: str, start: Any,
-                        q_names: tuple[str, ...], error: BaseException, wall_time: float, *,
-                        cpu_time: float = math.nan) -> CaseResult:
-        """The record of a case stopped at its time limit (`error` the
-        `TimeLimitReached`): its start (`start` a `PerturbedStart`) and times, no plan."""
+                        q_names: tuple[str, ...], error: TimeLimitReached, stage: str,
+                        wall_time: float, *, cpu_time: float = math.nan) -> CaseResult:
+        """The record of a case stopped at its time limit before any solve of it finished
+        (`stopped_at`): its start (`start` a `PerturbedStart`) and times, no plan."""
         return cls(
-            case_id=case.case_id, plan=plan, task=task, params=case.params, start=case.start,
-            seed=case.seed, offsets=dict(start.offsets),
-            q0=tuple(float(v) for v in start.q0), v0=tuple(float(v) for v in start.v0),
+            **_start_fields(case, plan, task, start),
             q_names=q_names, status=TIME_LIMIT, success=False, first_attempt_success=False,
             attempts_used=0, attempt_statuses=(), iterations=0, objective=math.nan,
-            residual=math.nan, end_state_deviation=math.nan,
-            times={"wall": float(wall_time), "cpu": float(cpu_time)},
-            failure=str(error), failure_kind="time limit",
-            extra={"draws": start.tries, "attempts": [],
-                   "time_limit": float(getattr(error, "limit", math.nan))})
+            residual=math.nan, end_state_deviation=math.nan, times={}, failure=None,
+            failure_kind=None, extra={"draws": start.tries, "attempts": []},
+        ).stopped_at(error, stage, wall_time, cpu_time=cpu_time)
 
-    def stopped(self, limit: CaseResult) -> CaseResult:
-        """This record of the discovery solves a case made before it was stopped at its
-        time limit (`limit`, its `from_time_limit` record): failed with that status,
-        failure and times, the discovery's attempts and iterations kept."""
+    def stopped_at(self, error: TimeLimitReached, stage: str, wall_time: float, *,
+                   cpu_time: float = math.nan) -> CaseResult:
+        """This record (of the discovery solves a case finished, or of none) as the case
+        stopped at its time limit `error` in `stage` ("in discovery 2", ...): failed, status
+        "time_limit", the case's wall and CPU seconds, the limit in `extra`."""
         return dataclasses.replace(
-            self, status=limit.status, success=False, first_attempt_success=False,
-            times={**self.times, **limit.times}, failure=limit.failure,
-            failure_kind=limit.failure_kind, extra={**self.extra, **limit.extra,
-                                                    "attempts": self.extra["attempts"]})
+            self, status=TIME_LIMIT, success=False, first_attempt_success=False,
+            times={**self.times, "wall": float(wall_time), "cpu": float(cpu_time)},
+            failure=f"{error} ({stage})", failure_kind="time limit",
+            extra={**self.extra, "time_limit": error.limit})
 
     def to_dict(self) -> dict:
         out = asdict(dataclasses.replace(self, trajectory=None))

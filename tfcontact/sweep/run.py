@@ -66,14 +66,14 @@ def solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int,
         if progress.start is None:  # stopped before its start was drawn: no IPOPT there
             raise
         wall, cpu_time = time.perf_counter() - started, time.process_time() - cpu
-        record = CaseResult.from_time_limit(case, target.name, task, progress.start,
-                                            progress.q_names, error, wall, cpu_time=cpu_time)
-        if progress.discoveries:
-            solved = progress.discoveries
-            record = CaseResult.from_contact(
-                case, target.name, task, progress.start, solved[-1], wall,
-                cpu_time=cpu_time).after_runs(solved[:-1]).stopped(record)
-        return dataclasses.replace(record, failure=f"{record.failure} ({progress.stage})")
+        solved = progress.discoveries
+        if not solved:
+            return CaseResult.from_time_limit(case, target.name, task, progress.start,
+                                              progress.q_names, error, progress.stage, wall,
+                                              cpu_time=cpu_time)
+        return CaseResult.from_contact(
+            case, target.name, task, progress.start, solved[-1], wall, cpu_time=cpu_time,
+        ).after_runs(solved[:-1]).stopped_at(error, progress.stage, wall, cpu_time=cpu_time)
 
 
 @dataclass
@@ -104,6 +104,7 @@ def _solve_case(target: SweepTarget, task: str, case: SweepCase, threads: int,
     progress.start, progress.q_names = start, tuple(problem.system.cls.q_names)
     given = target.given_sequence(task)
     if given is not None:  # no discovery: the sequence's solve from the perturbed start
+        progress.stage = f"in its {given.name}"
         moved = dataclasses.replace(setup, problem=problem, options=options)
         stage = dataclasses.replace(given, build=lambda _: moved).with_threads(threads)
         outcome, stage_times = run_later_stages(target.name, task, (stage,), None)
